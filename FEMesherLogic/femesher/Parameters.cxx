@@ -1,0 +1,314 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/Parameters.h>
+
+#include <nlohmann/json.hpp>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <functional>
+#include <sstream>
+
+namespace femesher {
+
+namespace {
+
+using json = nlohmann::json;
+
+struct Binding {
+  ParameterDescriptor desc;
+  std::function<void(MeshingParameters&, double)> set;
+  std::function<double(const MeshingParameters&)> get;
+};
+
+std::string fmt(double v) {
+  std::ostringstream os;
+  os.precision(10);
+  os << v;
+  return os.str();
+}
+
+const std::vector<Binding>& bindings() {
+  static const std::vector<Binding> b = [] {
+    std::vector<Binding> v;
+    auto add = [&](ParameterDescriptor d, std::function<void(MeshingParameters&, double)> s,
+                   std::function<double(const MeshingParameters&)> g) {
+      d.defaultValue = fmt(g(MeshingParameters{}));
+      v.push_back({std::move(d), std::move(s), std::move(g)});
+    };
+    add({"min_voxels", "int", "voxels", "", 1, 1e12, "Smallest label kept",
+         "Labels with fewer voxels are dropped (their voxels join the most common neighbouring "
+         "label) with a warning naming them; every other label appears in the mesh.", false},
+        [](MeshingParameters& p, double x) { p.minVoxels = int64_t(x); },
+        [](const MeshingParameters& p) { return double(p.minVoxels); });
+    add({"smoothing_sigma", "double", "voxels", "", 0, 3, "Surface smoothing",
+         "Gaussian smoothing of each material's signed distance, in voxels. 0 keeps the voxel "
+         "staircase; about 0.5-1 removes it without moving surfaces by more than half a voxel.",
+         true},
+        [](MeshingParameters& p, double x) { p.smoothingSigma = x; },
+        [](const MeshingParameters& p) { return p.smoothingSigma; });
+    add({"target_edge_length", "double", "mm", "", 0, 1e6, "Element size",
+         "Target edge length of the surface triangles in mm. Smaller = finer mesh. 0 = automatic "
+         "(edge_length_factor x the mean voxel spacing).", false},
+        [](MeshingParameters& p, double x) { p.targetEdgeLength = x; },
+        [](const MeshingParameters& p) { return p.targetEdgeLength; });
+    add({"edge_length_factor", "double", "voxels", "", 0.5, 50, "Element size (voxels)",
+         "Automatic element size as a multiple of the mean voxel spacing, used when "
+         "target_edge_length is 0.", false},
+        [](MeshingParameters& p, double x) { p.edgeLengthFactor = x; },
+        [](const MeshingParameters& p) { return p.edgeLengthFactor; });
+    add({"max_radius_edge_ratio", "double", "", "", 0, 10, "Quality bound (radius-edge)",
+         "TetGen's bound on the circumradius / shortest edge of each tet (-q). 0 disables quality "
+         "refinement. Values below about 1.2 may not terminate.", true},
+        [](MeshingParameters& p, double x) { p.maxRadiusEdgeRatio = x; },
+        [](const MeshingParameters& p) { return p.maxRadiusEdgeRatio; });
+    add({"min_dihedral_angle", "double", "degrees", "", 0, 18, "Quality bound (min dihedral)",
+         "TetGen's minimum dihedral angle target in degrees (-q ratio/angle). Above about 18 TetGen "
+         "may not terminate.", true},
+        [](MeshingParameters& p, double x) { p.minDihedralAngle = x; },
+        [](const MeshingParameters& p) { return p.minDihedralAngle; });
+    add({"max_tet_volume", "double", "mm^3", "", 0, 1e12, "Largest element volume",
+         "Upper bound on the volume of any tet in mm^3. 0 = automatic from the edge length.", true},
+        [](MeshingParameters& p, double x) { p.maxTetVolume = x; },
+        [](const MeshingParameters& p) { return p.maxTetVolume; });
+    add({"preserve_interfaces", "bool", "", "", 0, 1, "Keep interface triangles",
+         "Keep the interface triangles exactly as sampled (TetGen -Y). When TetGen cannot, the run "
+         "falls back to splitting them and says so.", true},
+        [](MeshingParameters& p, double x) { p.preserveInterfaces = x != 0; },
+        [](const MeshingParameters& p) { return p.preserveInterfaces ? 1.0 : 0.0; });
+    add({"optimization_level", "int", "", "", 0, 10, "Optimisation effort",
+         "TetGen mesh optimisation level (-O): flips and smoothing against slivers.", true},
+        [](MeshingParameters& p, double x) { p.optimizationLevel = int(x); },
+        [](const MeshingParameters& p) { return double(p.optimizationLevel); });
+    add({"threads", "int", "", "", 0, 1024, "Threads", "Worker threads; 0 = all cores.", true},
+        [](MeshingParameters& p, double x) { p.threads = int(x); },
+        [](const MeshingParameters& p) { return double(p.threads); });
+    add({"seed", "int", "", "", 0, 4294967295.0, "Random seed",
+         "Seed of the sampling order; the same seed and thread count give the same mesh.", true},
+        [](MeshingParameters& p, double x) { p.seed = uint64_t(x); },
+        [](const MeshingParameters& p) { return double(p.seed); });
+    add({"compute_fidelity", "bool", "", "", 0, 1, "Fidelity report",
+         "Compare the mesh with the input labels (Dice, volume error, boundary distance).", true},
+        [](MeshingParameters& p, double x) { p.computeFidelity = x != 0; },
+        [](const MeshingParameters& p) { return p.computeFidelity ? 1.0 : 0.0; });
+    add({"default.E", "double", "MPa", "", 1e-12, 1e9, "Young's modulus (default)",
+         "Young's modulus written for every material in solver exports unless overridden with "
+         "material.<label>.E.", true},
+        [](MeshingParameters& p, double x) { p.defaultMaterial.youngsModulus = x; },
+        [](const MeshingParameters& p) { return p.defaultMaterial.youngsModulus; });
+    add({"default.nu", "double", "", "", -0.999, 0.4999, "Poisson ratio (default)",
+         "Poisson ratio written for every material unless overridden with material.<label>.nu.",
+         true},
+        [](MeshingParameters& p, double x) { p.defaultMaterial.poissonRatio = x; },
+        [](const MeshingParameters& p) { return p.defaultMaterial.poissonRatio; });
+    add({"default.density", "double", "t/mm^3", "", 0, 1e3, "Density (default)",
+         "Mass density written for every material in solver exports.", true},
+        [](MeshingParameters& p, double x) { p.defaultMaterial.density = x; },
+        [](const MeshingParameters& p) { return p.defaultMaterial.density; });
+    return v;
+  }();
+  return b;
+}
+
+const Binding* findBinding(const std::string& key) {
+  for (const auto& b : bindings())
+    if (b.desc.key == key) return &b;
+  return nullptr;
+}
+
+bool parseNumber(const std::string& text, const std::string& type, double& out) {
+  if (type == "bool") {
+    if (text == "true" || text == "on" || text == "yes" || text == "1") { out = 1; return true; }
+    if (text == "false" || text == "off" || text == "no" || text == "0") { out = 0; return true; }
+    return false;
+  }
+  if (text.empty()) return false;
+  char* end = nullptr;
+  errno = 0;
+  out = std::strtod(text.c_str(), &end);
+  if (errno != 0 || end == text.c_str() || *end != '\0' || !std::isfinite(out)) return false;
+  if (type == "int" && out != std::floor(out)) return false;
+  return true;
+}
+
+Status setMaterialParameter(MeshingParameters& params, const std::string& key,
+                            const std::string& value) {
+  // material.<label>.<E|nu|density>
+  const auto dot = key.find('.', 9);
+  if (dot == std::string::npos)
+    return {ErrorCode::InvalidArgument,
+            "Parameter '" + key + "': use material.<label>.E, material.<label>.nu or "
+            "material.<label>.density"};
+  const std::string labelText = key.substr(9, dot - 9), field = key.substr(dot + 1);
+  double label = 0, x = 0;
+  if (!parseNumber(labelText, "int", label))
+    return {ErrorCode::InvalidArgument, "Parameter '" + key + "': '" + labelText +
+                                            "' is not an integer label id"};
+  if (!parseNumber(value, "double", x))
+    return {ErrorCode::InvalidArgument, "Parameter '" + key + "': '" + value + "' is not a number"};
+  auto it = params.materialProperties.find(int32_t(label));
+  ElasticProperties props = it != params.materialProperties.end() ? it->second
+                                                                  : params.defaultMaterial;
+  if (field == "E") {
+    if (x <= 0) return {ErrorCode::InvalidArgument, "Parameter '" + key + "' must be > 0 (MPa)"};
+    props.youngsModulus = x;
+  } else if (field == "nu") {
+    if (x <= -1 || x >= 0.5)
+      return {ErrorCode::InvalidArgument, "Parameter '" + key + "' must be in (-1, 0.5)"};
+    props.poissonRatio = x;
+  } else if (field == "density") {
+    if (x < 0) return {ErrorCode::InvalidArgument, "Parameter '" + key + "' must be >= 0"};
+    props.density = x;
+  } else {
+    return {ErrorCode::InvalidArgument,
+            "Parameter '" + key + "': unknown material field '" + field + "' (E, nu, density)"};
+  }
+  params.materialProperties[int32_t(label)] = props;
+  return Status::ok();
+}
+
+}  // namespace
+
+const std::vector<ParameterDescriptor>& parameterDescriptors() {
+  static const std::vector<ParameterDescriptor> d = [] {
+    std::vector<ParameterDescriptor> v;
+    for (const auto& b : bindings()) v.push_back(b.desc);
+    return v;
+  }();
+  return d;
+}
+
+Status setParameter(MeshingParameters& params, const std::string& key, const std::string& value) {
+  if (key.rfind("material.", 0) == 0) return setMaterialParameter(params, key, value);
+  const Binding* b = findBinding(key);
+  if (!b) {
+    std::string known;
+    for (const auto& x : bindings()) known += (known.empty() ? "" : ", ") + x.desc.key;
+    return {ErrorCode::InvalidArgument,
+            "Unknown parameter '" + key + "'. Known parameters: " + known +
+                ", material.<label>.E|nu|density."};
+  }
+  double x = 0;
+  if (!parseNumber(value, b->desc.type, x))
+    return {ErrorCode::InvalidArgument, "Parameter '" + key + "': '" + value + "' is not a valid " +
+                                            b->desc.type + " value"};
+  if (x < b->desc.minimum || x > b->desc.maximum)
+    return {ErrorCode::InvalidArgument, "Parameter '" + key + "' = " + value +
+                                            " is out of range [" + fmt(b->desc.minimum) + ", " +
+                                            fmt(b->desc.maximum) + "] " + b->desc.unit};
+  b->set(params, x);
+  return Status::ok();
+}
+
+std::string getParameter(const MeshingParameters& params, const std::string& key) {
+  const Binding* b = findBinding(key);
+  if (!b) return {};
+  const double v = b->get(params);
+  if (b->desc.type == "bool") return v != 0 ? "true" : "false";
+  return fmt(v);
+}
+
+std::vector<std::string> presetNames() { return {"coarse", "default", "fine"}; }
+
+Result<MeshingParameters> presetParameters(const std::string& name) {
+  MeshingParameters p;
+  if (name == "default") return p;
+  if (name == "coarse") {
+    p.edgeLengthFactor = 3.0;
+    return p;
+  }
+  if (name == "fine") {
+    p.edgeLengthFactor = 1.25;
+    return p;
+  }
+  return Result<MeshingParameters>(ErrorCode::InvalidArgument,
+                                   "Unknown preset '" + name + "' (coarse, default, fine)");
+}
+
+std::string parametersToJson(const MeshingParameters& params) {
+  json j;
+  for (const auto& b : bindings()) {
+    const double v = b.get(params);
+    if (b.desc.type == "bool") j[b.desc.key] = v != 0;
+    else if (b.desc.type == "int") j[b.desc.key] = int64_t(v);
+    else j[b.desc.key] = v;
+  }
+  json mats = json::object();
+  for (const auto& [label, m] : params.materialProperties)
+    mats[std::to_string(label)] = {{"E", m.youngsModulus}, {"nu", m.poissonRatio},
+                                   {"density", m.density}};
+  j["materials"] = mats;
+  return j.dump(2);
+}
+
+Result<MeshingParameters> parametersFromJson(const std::string& text,
+                                             const MeshingParameters& base) {
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const std::exception& e) {
+    return Result<MeshingParameters>(ErrorCode::InvalidArgument,
+                                     std::string("Parameter file is not valid JSON: ") + e.what());
+  }
+  if (!j.is_object())
+    return Result<MeshingParameters>(ErrorCode::InvalidArgument,
+                                     "Parameter file must hold a JSON object of key: value");
+  MeshingParameters p = base;
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    if (it.key() == "materials") {
+      if (!it->is_object())
+        return Result<MeshingParameters>(ErrorCode::InvalidArgument,
+                                         "\"materials\" must be an object label -> {E, nu}");
+      for (auto m = it->begin(); m != it->end(); ++m) {
+        for (auto f = m->begin(); f != m->end(); ++f) {
+          if (!f->is_number())
+            return Result<MeshingParameters>(ErrorCode::InvalidArgument,
+                                             "materials." + m.key() + "." + f.key() +
+                                                 " must be a number");
+          Status s = setParameter(p, "material." + m.key() + "." + f.key(),
+                                  fmt(f->get<double>()));
+          if (!s) return s;
+        }
+      }
+      continue;
+    }
+    std::string value;
+    if (it->is_boolean()) value = it->get<bool>() ? "true" : "false";
+    else if (it->is_number_integer()) value = std::to_string(it->get<int64_t>());
+    else if (it->is_number()) value = fmt(it->get<double>());
+    else if (it->is_string()) value = it->get<std::string>();
+    else
+      return Result<MeshingParameters>(ErrorCode::InvalidArgument,
+                                       "Parameter '" + it.key() + "' has an unsupported value");
+    Status s = setParameter(p, it.key(), value);
+    if (!s) return s;
+  }
+  return p;
+}
+
+Result<MeshingParameters> loadParametersFile(const std::string& path,
+                                             const MeshingParameters& base) {
+  std::ifstream in(path);
+  if (!in)
+    return Result<MeshingParameters>(ErrorCode::FileNotFound,
+                                     "Cannot open parameter file '" + path + "'");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  auto r = parametersFromJson(ss.str(), base);
+  if (!r) return Status(r.status().code(), path + ": " + r.status().message());
+  return r;
+}
+
+Status validate(const MeshingParameters& p) {
+  if (p.minVoxels < 1) return {ErrorCode::InvalidArgument, "min_voxels must be >= 1"};
+  if (p.smoothingSigma < 0) return {ErrorCode::InvalidArgument, "smoothing_sigma must be >= 0"};
+  if (p.maxRadiusEdgeRatio != 0 && p.maxRadiusEdgeRatio < 1.05)
+    return {ErrorCode::InvalidArgument,
+            "max_radius_edge_ratio must be 0 (off) or >= 1.05; lower bounds do not terminate"};
+  if (p.minDihedralAngle < 0 || p.minDihedralAngle > 18)
+    return {ErrorCode::InvalidArgument, "min_dihedral_angle must be in [0, 18] degrees"};
+  return Status::ok();
+}
+
+}  // namespace femesher

@@ -1,0 +1,58 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+/// \file LabelMapIO.h
+/// Reading and writing label maps with ITK: NRRD/NHDR, NIfTI (.nii, .nii.gz), MetaImage
+/// (.mha/.mhd) and Slicer segmentations (.seg.nrrd). Geometry (origin, anisotropic spacing,
+/// oblique or left-handed direction) is kept exactly, in LPS.
+///
+/// Errors (never a crash, never a partial output):
+///  - FileNotFound: the path does not exist.
+///  - UnreadableFile: no reader for the format, permission denied, not an image.
+///  - CorruptFile: truncated data, or a header that lies about its data (e.g. a MetaImage
+///    CompressedDataSize that does not match the data file: ITK would silently zero-fill).
+///  - NotALabelMap: 2-D image, multi-component pixels (other than .seg.nrrd layers), or a float
+///    image whose values are not all integers (a CT, not labels).
+///  - EmptyLabelMap: only background (0).
+///  - TooManyLabels: more than 65,535 distinct labels.
+///  - OverlappingSegments: a .seg.nrrd whose segments overlap (several layers).
+/// Every message names the file, the problem and what to do about it.
+
+#include <femesher/Status.h>
+#include <femesher/Types.h>
+
+#include <string>
+#include <vector>
+
+namespace femesher {
+
+/// Read a label map. Materials get names/colours from a .seg.nrrd header, else defaults.
+Result<LabelVolume> readLabelMap(const std::string& path);
+
+/// Write a label map (format from the extension: .nrrd, .nhdr, .nii, .nii.gz, .mha, .mhd),
+/// atomically, with the volume's geometry. Labels are stored as the smallest integer type that
+/// holds them.
+Status writeLabelMap(const LabelVolume& volume, const std::string& path);
+
+/// Write a float scalar volume with the geometry of `geometry` (its labels are ignored), e.g. a
+/// sizing field in mm. `values` has geometry.voxelCount() entries, x fastest.
+Status writeScalarVolume(const LabelVolume& geometry, const std::vector<float>& values,
+                         const std::string& path);
+
+/// Per-label statistics for `femesher info` and the panel's material table.
+struct LabelStatistics {
+  int32_t id = 0;
+  std::string name;
+  size_t voxels = 0;
+  double volumeMm3 = 0;
+  int components = 0;               ///< 6-connected components
+  std::array<int, 3> bboxMin{{0, 0, 0}}, bboxMax{{0, 0, 0}};  ///< voxel index bounding box
+};
+struct LabelMapSummary {
+  std::vector<LabelStatistics> labels;  ///< background (0) first when present
+  std::vector<std::pair<int32_t, int32_t>> touchingPairs;  ///< 6-neighbour, a < b
+  size_t tripleCells = 0;     ///< 2x2x2 cells holding >= 3 distinct labels
+  size_t quadrupleCells = 0;  ///< 2x2x2 cells holding >= 4 distinct labels
+};
+LabelMapSummary summarizeLabelMap(const LabelVolume& volume);
+
+}  // namespace femesher

@@ -1,0 +1,47 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+/// \file MeshIO.h
+/// Writing (and reading back) labelled tet meshes. The format follows the extension:
+///  - .vtu  VTK XML unstructured grid; cell array `labels` (int32 user ids), field data
+///          `SPACE` = "LPS", `MaterialIds`/`MaterialNames`, `FEMesherVersion`.
+///  - .inp  Abaqus/CalculiX: C3D4, an ELSET + *SOLID SECTION + named *MATERIAL (*ELASTIC,
+///          *DENSITY) per material, NSET `BOUNDARY` (outer boundary nodes), an element-based
+///          *SURFACE per material interface and per material's outer boundary.
+///  - .msh  Gmsh MSH 4.1 ASCII: a named physical volume per material, a named physical surface
+///          per interface.
+///  - .mesh Medit (INRIA) ASCII: tets with material refs, interface triangles with refs.
+///  - .feb  FEBio 2.5 model: nodes, a solid domain per material, materials (neo-Hookean from E/nu).
+///  - .stl  ASCII STL: one `solid` per interface (outward from the lower label).
+/// All writers are atomic (temporary file + rename). Coordinates are written in LPS mm.
+
+#include <femesher/Parameters.h>
+#include <femesher/Status.h>
+#include <femesher/Types.h>
+
+#include <map>
+#include <string>
+#include <vector>
+
+namespace femesher {
+
+struct ExportOptions {
+  ElasticProperties defaultMaterial;                       ///< for every material ...
+  std::map<int32_t, ElasticProperties> materialProperties;  ///< ... unless overridden here
+  /// Extra provenance written where the format allows (VTU field data, comments).
+  std::string provenance;
+};
+
+/// Export options from the meshing parameters (material properties).
+ExportOptions exportOptionsFrom(const MeshingParameters& params);
+
+/// Extensions `writeMesh` accepts, e.g. {".vtu", ".inp", ".msh", ".mesh", ".feb", ".stl"}.
+std::vector<std::string> supportedMeshExtensions();
+
+/// Write `mesh` to `path` (format from the extension). InvalidArgument for an unknown extension,
+/// WriteFailed for I/O errors. Never leaves a partial file.
+Status writeMesh(const TetMesh& mesh, const std::string& path, const ExportOptions& options = {});
+
+/// Read a tet mesh written by FEMesher (.vtu; .msh 4.1 and .mesh too). Used by `femesher quality`.
+Result<TetMesh> readMesh(const std::string& path);
+
+}  // namespace femesher

@@ -1,0 +1,54 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+/// \file Fidelity.h
+/// Agreement of a mesh with the label map it came from.
+///  - Per material: voxel volume, mesh volume, relative volume error, Dice.
+///    Dice compares, over all voxel centres, the voxel's label with the label of the tet that
+///    contains the centre (background when none): 2|A∩B| / (|A|+|B|).
+///  - Boundary distance, in voxels (of the smallest spacing): mesh->labels = distance from points
+///    sampled on the mesh's interface triangles to the nearest voxel boundary face between two
+///    different labels; labels->mesh = from voxel boundary face centres to the nearest mesh
+///    interface triangle. Mean, median, 95th and 99th percentile, max.
+///  - Missing labels: labels of the input that no tet carries.
+
+#include <femesher/Types.h>
+
+#include <string>
+#include <vector>
+
+namespace femesher {
+
+class RunContext;
+
+struct MaterialFidelity {
+  int32_t label = 0;
+  std::string name;
+  size_t voxels = 0;          ///< voxels of this label in the input
+  size_t meshVoxels = 0;      ///< voxel centres falling in tets of this label
+  double voxelVolume = 0;     ///< mm^3
+  double meshVolume = 0;      ///< mm^3, sum of tet volumes
+  double volumeError = 0;     ///< (mesh - voxel) / voxel
+  double dice = 0;
+  size_t tets = 0;
+};
+
+struct DistanceStats {
+  size_t samples = 0;
+  double mean = 0, median = 0, p95 = 0, p99 = 0, max = 0;  ///< in voxels
+};
+
+struct FidelityReport {
+  std::vector<MaterialFidelity> materials;  ///< every non-background input label, sorted
+  std::vector<int32_t> missingLabels;       ///< input labels absent from the mesh
+  DistanceStats meshToLabels, labelsToMesh;
+  double voxelSize = 1;                     ///< mm, the unit of the distances (min spacing)
+};
+
+/// `labels` is the input label map (LPS geometry), `mesh` in LPS. `ctx` may be null.
+FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh,
+                               RunContext* ctx = nullptr);
+
+std::string fidelityReportToJson(const FidelityReport& report);
+std::string fidelityReportToText(const FidelityReport& report);
+
+}  // namespace femesher

@@ -1,0 +1,111 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/Parameters.h>
+#include <femesher/RunContext.h>
+#include <femesher/Types.h>
+
+#include <gtest/gtest.h>
+
+#include <thread>
+
+using namespace femesher;
+
+TEST(Parameters, SetAndGetEveryDescriptor) {
+  MeshingParameters p;
+  for (const auto& d : parameterDescriptors()) {
+    EXPECT_EQ(getParameter(p, d.key), d.type == "bool" ? (d.defaultValue == "1" ? "true" : "false")
+                                                       : d.defaultValue)
+        << d.key;
+    EXPECT_FALSE(d.help.empty()) << d.key;
+  }
+  ASSERT_TRUE(setParameter(p, "target_edge_length", "1.5").isOk());
+  EXPECT_DOUBLE_EQ(p.targetEdgeLength, 1.5);
+  ASSERT_TRUE(setParameter(p, "preserve_interfaces", "off").isOk());
+  EXPECT_FALSE(p.preserveInterfaces);
+}
+
+TEST(Parameters, RejectsUnknownKeysAndBadValues) {
+  MeshingParameters p;
+  Status s = setParameter(p, "no_such_key", "1");
+  EXPECT_EQ(s.code(), ErrorCode::InvalidArgument);
+  EXPECT_NE(s.message().find("no_such_key"), std::string::npos);
+  EXPECT_EQ(setParameter(p, "min_voxels", "1.5").code(), ErrorCode::InvalidArgument);
+  EXPECT_EQ(setParameter(p, "min_voxels", "abc").code(), ErrorCode::InvalidArgument);
+  EXPECT_EQ(setParameter(p, "min_dihedral_angle", "40").code(), ErrorCode::InvalidArgument);
+  EXPECT_EQ(setParameter(p, "material.3.nu", "0.7").code(), ErrorCode::InvalidArgument);
+}
+
+TEST(Parameters, JsonRoundTripKeepsEverything) {
+  MeshingParameters p;
+  ASSERT_TRUE(setParameter(p, "target_edge_length", "0.75").isOk());
+  ASSERT_TRUE(setParameter(p, "min_voxels", "3").isOk());
+  ASSERT_TRUE(setParameter(p, "material.2.E", "17000").isOk());
+  ASSERT_TRUE(setParameter(p, "material.2.nu", "0.25").isOk());
+  auto q = parametersFromJson(parametersToJson(p));
+  ASSERT_TRUE(q.isOk()) << q.status().message();
+  EXPECT_EQ(parametersToJson(q.value()), parametersToJson(p));
+  EXPECT_DOUBLE_EQ(q->materialProperties.at(2).youngsModulus, 17000);
+  EXPECT_FALSE(parametersFromJson("{not json").isOk());
+  EXPECT_FALSE(parametersFromJson("{\"bogus\": 1}").isOk());
+}
+
+TEST(Parameters, PresetsDifferInSize) {
+  auto c = presetParameters("coarse"), f = presetParameters("fine");
+  ASSERT_TRUE(c.isOk() && f.isOk());
+  EXPECT_GT(c->edgeLengthFactor, f->edgeLengthFactor);
+  EXPECT_FALSE(presetParameters("ultra").isOk());
+}
+
+TEST(RunContext, WeightedProgressIsMonotoneAndCancelThrows) {
+  RunContext ctx;
+  std::vector<double> totals;
+  ctx.setProgressCallback([&](const std::string&, double, double t) { totals.push_back(t); });
+  ctx.setStagePlan({{"a", 1}, {"b", 3}});
+  ctx.beginStage("a");
+  ctx.endStage();
+  ctx.beginStage("b");
+  ctx.progress(0.5);
+  ctx.endStage();
+  ASSERT_FALSE(totals.empty());
+  for (size_t i = 1; i < totals.size(); ++i) EXPECT_GE(totals[i], totals[i - 1]);
+  EXPECT_NEAR(totals.back(), 1.0, 1e-12);
+  std::thread t([&] { ctx.cancel(); });
+  t.join();
+  EXPECT_THROW(ctx.checkCancel(), Error);
+}
+
+TEST(Types, PhysicalCanonicalRoundTripObliqueLeftHanded) {
+  LabelVolume v;
+  v.dims = {4, 5, 6};
+  v.spacing = {0.7, 0.36, 0.36};
+  v.origin = {-24, 51.8, -57.1};
+  // a rotation about z composed with a flip of x (det = -1)
+  const double c = 0.978, s = 0.208;
+  v.direction = {-c, s, 0, -s, -c, 0, 0, 0, -1};
+  EXPECT_LT(v.directionDeterminant(), 0);
+  const Vec3 ijk{1.5, 2.25, 3};
+  const Vec3 p = v.indexToPhysical(ijk);
+  const Vec3 back = v.physicalToIndex(p);
+  for (int a = 0; a < 3; ++a) EXPECT_NEAR(back[a], ijk[a], 1e-12);
+}
+
+TEST(Types, ExtractInterfacesOfTwoTets) {
+  TetMesh m;
+  m.points = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0, 0, -1}};
+  m.tets = {{0, 1, 2, 3}, {0, 2, 1, 4}};
+  m.tetLabels = {1, 2};
+  ASSERT_GT(m.tetVolume(0), 0);
+  ASSERT_GT(m.tetVolume(1), 0);
+  auto faces = extractInterfaces(m);
+  // 3 + 3 boundary faces and one shared face between labels 1 and 2.
+  ASSERT_EQ(faces.size(), 7u);
+  int shared = 0;
+  for (const auto& f : faces)
+    if (f.labelB != kExteriorLabel) {
+      ++shared;
+      EXPECT_EQ(f.labelA, 1);
+      EXPECT_EQ(f.labelB, 2);
+    }
+  EXPECT_EQ(shared, 1);
+  m.tetLabels = {1, 1};
+  EXPECT_EQ(extractInterfaces(m).size(), 6u);
+}
