@@ -1,4 +1,429 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-#include "FEMesherXml.h"
+// femesher: command-line front end of FEMesherLogic (batch meshing, inspection, Slicer CLI).
+#include "CliProgress.h"
+
+#include <femesher/Parameters.h>
+#include <femesher/Phantom.h>
+#include <femesher/Pipeline.h>
+#include <femesher/Version.h>
+#include <femesher/io/AtomicFile.h>
+#include <femesher/io/LabelMapIO.h>
+#include <femesher/io/MeshIO.h>
+#include <femesher/stages/Fidelity.h>
+#include <femesher/stages/Quality.h>
+
+#include <CLI/CLI.hpp>
+
+#include <atomic>
+#include <csignal>
 #include <cstdio>
-int main() { std::puts(kFEMesherCliXml); return 0; }
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+
+using namespace femesher;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::atomic<RunContext*> gRunning{nullptr};
+
+void onSignal(int) {
+  if (RunContext* ctx = gRunning.load()) ctx->cancel();
+}
+
+int fail(const Status& s) {
+  std::fprintf(stderr, "error [%s]: %s\n", errorCodeName(s.code()), s.message().c_str());
+  return exitCodeFor(s.code());
+}
+
+Status writeText(const std::string& path, const std::string& text) {
+  return writeAtomically(path, [&](const std::string& tmp) {
+    std::ofstream out(tmp);
+    out << text << "\n";
+    out.close();
+    if (!out) return Status(ErrorCode::WriteFailed, "Cannot write '" + path + "'");
+    return Status::ok();
+  });
+}
+
+/// Checks outputs before a long run: supported extension and existing folder.
+Status checkOutputs(const std::vector<std::string>& outputs) {
+  const auto exts = supportedMeshExtensions();
+  for (const auto& o : outputs) {
+    const std::string ext = fileExtension(o);
+    if (std::find(exts.begin(), exts.end(), ext) == exts.end()) {
+      std::string list;
+      for (const auto& e : exts) list += (list.empty() ? "" : " ") + e;
+      return {ErrorCode::InvalidArgument,
+              "Output '" + o + "': unsupported extension '" + ext + "'. Use one of: " + list};
+    }
+    const fs::path dir = fs::path(o).has_parent_path() ? fs::path(o).parent_path() : fs::path(".");
+    if (!fs::is_directory(dir))
+      return {ErrorCode::WriteFailed,
+              "Output '" + o + "': folder '" + dir.string() + "' does not exist."};
+  }
+  return Status::ok();
+}
+
+struct MeshOptions {
+  std::string input;
+  std::vector<std::string> outputs;
+  std::string preset = "default";
+  std::string parameterFile;
+  std::vector<std::string> sets;
+  int threads = -1;
+  long long seed = -1;
+  std::string report;
+  std::string saveParameters;
+  bool quiet = false;
+  std::map<std::string, std::string> direct;  ///< --<parameter-key> value (one flag per parameter)
+};
+
+std::string flagName(const std::string& key) {
+  std::string f = key;
+  for (auto& c : f)
+    if (c == '_' || c == '.') c = '-';
+  return f;
+}
+
+std::string xmlEscape(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    if (c == '<') o += "&lt;";
+    else if (c == '>') o += "&gt;";
+    else if (c == '&') o += "&amp;";
+    else o += c;
+  }
+  return o;
+}
+
+/// The Slicer CLI module description, generated from the parameter descriptors so that the XML
+/// and the accepted flags can never drift apart.
+std::string slicerXml() {
+  std::ostringstream x;
+  x << "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<executable>\n"
+    << "  <category>Segmentation</category>\n  <title>FEMesher</title>\n"
+    << "  <description>Conformal multi-material tetrahedral mesh (FE-ready) from a label map: every "
+       "tet carries its material, neighbouring materials share the same interface triangles."
+       "</description>\n"
+    << "  <version>" FEMESHER_VERSION "</version>\n"
+    << "  <documentation-url>https://github.com/femesher/FEMesher</documentation-url>\n"
+    << "  <license>GPL-3.0-or-later</license>\n  <contributor>FEMesher developers</contributor>\n"
+    << "  <acknowledgements>Method after Kehl et al. (BioMesh3D particle pipeline with the "
+       "Integer Medial Axis).</acknowledgements>\n"
+    << "  <parameters>\n    <label>IO</label>\n    <description>Input label map and output mesh"
+       "</description>\n"
+    << "    <image type=\"label\">\n      <name>inputVolume</name>\n      <label>Label map</label>\n"
+       "      <channel>input</channel>\n      <index>0</index>\n"
+       "      <description>Segmentation as a label map (one integer material id per voxel)"
+       "</description>\n    </image>\n"
+    << "    <geometry type=\"model\" fileExtensions=\".vtu,.vtk\">\n      <name>outputMesh</name>\n"
+       "      <label>Tetrahedral mesh</label>\n      <channel>output</channel>\n"
+       "      <index>1</index>\n      <description>Labelled tetrahedral mesh (cell array "
+       "'labels', LPS)</description>\n    </geometry>\n"
+    << "    <string-enumeration>\n      <name>preset</name>\n      <label>Preset</label>\n"
+       "      <longflag>--preset</longflag>\n      <description>Element size preset</description>\n"
+       "      <default>default</default>\n      <element>coarse</element>\n"
+       "      <element>default</element>\n      <element>fine</element>\n"
+       "    </string-enumeration>\n  </parameters>\n";
+  for (bool advanced : {false, true}) {
+    x << "  <parameters" << (advanced ? " advanced=\"true\"" : "") << ">\n    <label>"
+      << (advanced ? "Advanced" : "Meshing") << "</label>\n    <description>"
+      << (advanced ? "Quality bounds, smoothing, material properties, run options"
+                   : "Element size and what is meshed")
+      << "</description>\n";
+    for (const auto& d : parameterDescriptors()) {
+      if (d.advanced != advanced) continue;
+      const std::string tag = d.type == "bool" ? "boolean" : d.type == "int" ? "integer" : "double";
+      std::string name = d.key;
+      for (auto& c : name)
+        if (c == '.') c = '_';
+      std::string def = d.defaultValue;
+      if (d.type == "bool") def = def == "1" ? "true" : "false";
+      x << "    <" << tag << ">\n      <name>" << name << "</name>\n      <label>" << xmlEscape(d.label)
+        << "</label>\n      <longflag>--" << flagName(d.key) << "</longflag>\n      <description>"
+        << xmlEscape(d.help) << (d.unit.empty() ? "" : " Unit: " + xmlEscape(d.unit) + ".")
+        << "</description>\n      <default>" << def << "</default>\n";
+      if (d.type != "bool")
+        x << "      <constraints>\n        <minimum>" << d.minimum << "</minimum>\n        <maximum>"
+          << d.maximum << "</maximum>\n      </constraints>\n";
+      x << "    </" << tag << ">\n";
+    }
+    x << "  </parameters>\n";
+  }
+  x << "</executable>\n";
+  return x.str();
+}
+
+Result<MeshingParameters> buildParameters(const MeshOptions& o) {
+  auto p = presetParameters(o.preset);
+  if (!p) return p;
+  MeshingParameters params = p.value();
+  if (!o.parameterFile.empty()) {
+    auto f = loadParametersFile(o.parameterFile, params);
+    if (!f) return f;
+    params = f.value();
+  }
+  for (const auto& kv : o.sets) {
+    const auto eq = kv.find('=');
+    if (eq == std::string::npos)
+      return Result<MeshingParameters>(ErrorCode::InvalidArgument,
+                                       "--set expects key=value, got '" + kv + "'");
+    Status s = setParameter(params, kv.substr(0, eq), kv.substr(eq + 1));
+    if (!s) return s;
+  }
+  for (const auto& [key, value] : o.direct) {
+    Status s = setParameter(params, key, value);
+    if (!s) return s;
+  }
+  if (o.threads >= 0) params.threads = o.threads;
+  if (o.seed >= 0) params.seed = uint64_t(o.seed);
+  if (Status s = validate(params); !s) return s;
+  return params;
+}
+
+int runMesh(const MeshOptions& o) {
+  auto params = buildParameters(o);
+  if (!params) return fail(params.status());
+  if (o.outputs.empty() && o.report.empty() && o.saveParameters.empty())
+    return fail({ErrorCode::InvalidArgument, "Nothing to write: give at least one -o OUTPUT."});
+  if (Status s = checkOutputs(o.outputs); !s) return fail(s);
+  if (!o.saveParameters.empty()) {
+    if (Status s = writeText(o.saveParameters, parametersToJson(params.value())); !s) return fail(s);
+  }
+  if (o.outputs.empty() && o.report.empty()) return 0;
+
+  cli::CliProgress progress(cli::CliProgress::detect(o.quiet));
+  progress.start("Meshing " + o.input);
+  auto volume = readLabelMap(o.input);
+  if (!volume) {
+    progress.finish(false);
+    return fail(volume.status());
+  }
+  RunContext ctx;
+  ctx.setProgressCallback([&](const std::string& st, double f, double t) { progress.update(st, f, t); });
+  ctx.setLogCallback([&](LogLevel l, const std::string& m) { progress.log(l, m); });
+  gRunning = &ctx;
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+  auto result = runPipeline(volume.value(), params.value(), ctx);
+  gRunning = nullptr;
+  if (!result) {
+    progress.finish(false);
+    return fail(result.status());
+  }
+  ExportOptions eo = exportOptionsFrom(params.value());
+  eo.provenance = "femesher " FEMESHER_VERSION " from " + o.input;
+  for (const auto& out : o.outputs) {
+    if (Status s = writeMesh(result->mesh, out, eo); !s) {
+      progress.finish(false);
+      return fail(s);
+    }
+  }
+  if (!o.report.empty()) {
+    if (Status s = writeText(o.report, result->reportJson); !s) {
+      progress.finish(false);
+      return fail(s);
+    }
+  }
+  progress.finish(true);
+  if (!o.quiet) {
+    const auto& r = result.value();
+    std::fprintf(stderr, "%zu vertices, %zu tets, %zu materials in %.1f s\n", r.mesh.points.size(),
+                 r.mesh.tets.size(), r.mesh.materials.size(), r.totalSeconds);
+    for (const auto& t : r.timings) std::fprintf(stderr, "  %-20s %8.2f s\n", t.name.c_str(), t.seconds);
+    if (r.hasFidelity) std::fprintf(stderr, "%s", fidelityReportToText(r.fidelity).c_str());
+    for (const auto& out : o.outputs) std::fprintf(stderr, "wrote %s\n", out.c_str());
+  }
+  return 0;
+}
+
+int runInfo(const std::string& input, bool asJson) {
+  auto volume = readLabelMap(input);
+  if (!volume) return fail(volume.status());
+  const LabelVolume& v = volume.value();
+  const LabelMapSummary s = summarizeLabelMap(v);
+  if (asJson) {
+    std::ostringstream os;
+    os << "{\n  \"path\": \"" << input << "\",\n  \"dims\": [" << v.dims[0] << ", " << v.dims[1]
+       << ", " << v.dims[2] << "],\n  \"spacing\": [" << v.spacing[0] << ", " << v.spacing[1]
+       << ", " << v.spacing[2] << "],\n  \"origin\": [" << v.origin[0] << ", " << v.origin[1]
+       << ", " << v.origin[2] << "],\n  \"direction\": [";
+    for (int i = 0; i < 9; ++i) os << v.direction[i] << (i < 8 ? ", " : "");
+    os << "],\n  \"labels\": [";
+    for (size_t i = 0; i < s.labels.size(); ++i) {
+      const auto& l = s.labels[i];
+      os << (i ? ",\n" : "\n") << "    {\"id\": " << l.id << ", \"name\": \"" << l.name
+         << "\", \"voxels\": " << l.voxels << ", \"volume_mm3\": " << l.volumeMm3
+         << ", \"components\": " << l.components << "}";
+    }
+    os << "\n  ],\n  \"touching_pairs\": " << s.touchingPairs.size()
+       << ",\n  \"triple_cells\": " << s.tripleCells << ",\n  \"quadruple_cells\": "
+       << s.quadrupleCells << "\n}\n";
+    std::fputs(os.str().c_str(), stdout);
+    return 0;
+  }
+  std::printf("%s\n", input.c_str());
+  std::printf("  dims      %d x %d x %d\n", v.dims[0], v.dims[1], v.dims[2]);
+  std::printf("  spacing   %g x %g x %g mm\n", v.spacing[0], v.spacing[1], v.spacing[2]);
+  std::printf("  origin    (%g, %g, %g) LPS\n", v.origin[0], v.origin[1], v.origin[2]);
+  std::printf("  direction [%g %g %g; %g %g %g; %g %g %g]%s\n", v.direction[0], v.direction[1],
+              v.direction[2], v.direction[3], v.direction[4], v.direction[5], v.direction[6],
+              v.direction[7], v.direction[8],
+              v.directionDeterminant() < 0 ? " (left-handed)" : "");
+  std::printf("  %-8s %-28s %12s %14s %10s\n", "label", "name", "voxels", "volume mm^3", "components");
+  for (const auto& l : s.labels)
+    std::printf("  %-8d %-28s %12zu %14.1f %10d\n", l.id, l.name.c_str(), l.voxels, l.volumeMm3,
+                l.components);
+  std::printf("  touching label pairs: %zu; 2x2x2 cells with >=3 labels: %zu, >=4 labels: %zu\n",
+              s.touchingPairs.size(), s.tripleCells, s.quadrupleCells);
+  return 0;
+}
+
+int runQuality(const std::string& meshPath, const std::string& labelsPath, bool asJson) {
+  auto mesh = readMesh(meshPath);
+  if (!mesh) return fail(mesh.status());
+  const QualityReport q = computeQuality(mesh.value());
+  FidelityReport fr;
+  const bool withFidelity = !labelsPath.empty();
+  if (withFidelity) {
+    auto labels = readLabelMap(labelsPath);
+    if (!labels) return fail(labels.status());
+    fr = computeFidelity(labels.value(), mesh.value());
+  }
+  if (asJson) {
+    std::string text = "{\n\"quality\": " + qualityReportToJson(q, true);
+    if (withFidelity) text += ",\n\"fidelity\": " + fidelityReportToJson(fr);
+    text += "\n}\n";
+    std::fputs(text.c_str(), stdout);
+  } else {
+    std::printf("%s: %zu vertices, %zu tets\n", meshPath.c_str(), mesh->points.size(), mesh->tets.size());
+    std::fputs(qualityReportToText(q).c_str(), stdout);
+    if (withFidelity) std::fputs(fidelityReportToText(fr).c_str(), stdout);
+  }
+  return 0;
+}
+
+int runPhantom(const std::string& output, double voxelSize) {
+  PhantomOptions po;
+  if (voxelSize > 0) po.voxelSize = voxelSize;
+  const LabelVolume v = makePhantom(po);
+  if (Status s = writeLabelMap(v, output); !s) return fail(s);
+  std::fprintf(stderr, "wrote %s (%d x %d x %d voxels, %zu materials)\n", output.c_str(), v.dims[0],
+               v.dims[1], v.dims[2], v.materials.size());
+  return 0;
+}
+
+void addMeshOptions(CLI::App* cmd, MeshOptions& o, bool positionalOutput) {
+  cmd->add_option("input", o.input, "Label map (.nrrd .nhdr .nii .nii.gz .mha .mhd .seg.nrrd)")
+      ->required();
+  if (positionalOutput) cmd->add_option("output", o.outputs, "Output mesh");
+  cmd->add_option("-o,--output", o.outputs,
+                  "Output mesh; repeat for several formats (.vtu .inp .msh .mesh .feb .stl)");
+  cmd->add_option("--preset", o.preset, "Parameter preset: coarse, default, fine");
+  cmd->add_option("--parameters", o.parameterFile, "JSON parameter file (as saved by the app)");
+  cmd->add_option("--set", o.sets, "Set a parameter: key=value (repeatable; see `femesher parameters`)");
+  cmd->add_option("--threads", o.threads, "Worker threads (0 = all cores)");
+  cmd->add_option("--seed", o.seed, "Random seed");
+  cmd->add_option("--report", o.report, "Write the run report (JSON)");
+  cmd->add_option("--save-parameters", o.saveParameters, "Write the effective parameters (JSON)");
+  cmd->add_flag("-q,--quiet", o.quiet, "Only warnings and errors");
+  for (const auto& d : parameterDescriptors()) {
+    const std::string key = d.key;
+    cmd->add_option_function<std::string>(
+           "--" + flagName(d.key), [&o, key](const std::string& v) { o.direct[key] = v; },
+           d.help + (d.unit.empty() ? "" : " [" + d.unit + "]"))
+        ->group("Parameters");
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // Slicer runs CLI modules as `femesher [--flags] input output` (no sub-command).
+  static const std::vector<std::string> commands = {"mesh", "quality", "info", "phantom",
+                                                    "parameters", "--xml", "--version", "-h",
+                                                    "--help"};
+  bool slicerStyle = argc > 1;
+  for (int i = 1; i < argc; ++i)
+    if (std::find(commands.begin(), commands.end(), argv[i]) != commands.end()) slicerStyle = false;
+
+  CLI::App app{"FEMesher " FEMESHER_VERSION
+               ": conformal multi-material tetrahedral meshes from label maps"};
+  app.set_version_flag("--version", std::string("femesher ") + FEMESHER_VERSION + " (ITK " +
+                                        FEMESHER_ITK_VERSION + ", VTK " + FEMESHER_VTK_VERSION +
+                                        ", CGAL " + FEMESHER_CGAL_VERSION + ", TetGen " +
+                                        FEMESHER_TETGEN_VERSION + ")");
+  bool xml = false;
+  app.add_flag("--xml", xml, "Print the Slicer CLI module description and exit");
+
+  MeshOptions meshOpts;
+  if (slicerStyle) {
+    addMeshOptions(&app, meshOpts, true);
+    try {
+      app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+      const int rc = app.exit(e);
+      return rc == 0 ? 0 : exitCodeFor(ErrorCode::InvalidArgument);
+    }
+    return runMesh(meshOpts);
+  }
+
+  auto* mesh = app.add_subcommand("mesh", "Mesh a label map");
+  addMeshOptions(mesh, meshOpts, false);
+
+  std::string qualityMesh, qualityLabels;
+  bool qualityJson = false;
+  auto* quality = app.add_subcommand("quality", "Element quality (and fidelity) of a mesh");
+  quality->add_option("mesh", qualityMesh, "Mesh (.vtu .msh .mesh)")->required();
+  quality->add_option("--labels", qualityLabels, "Label map to compare with (fidelity)");
+  quality->add_flag("--json", qualityJson, "JSON output");
+
+  std::string infoInput;
+  bool infoJson = false;
+  auto* info = app.add_subcommand("info", "Describe a label map");
+  info->add_option("input", infoInput, "Label map")->required();
+  info->add_flag("--json", infoJson, "JSON output");
+
+  std::string phantomOut;
+  double phantomVoxel = 0;
+  auto* phantom = app.add_subcommand("phantom", "Write the built-in hip phantom label map");
+  phantom->add_option("output", phantomOut, "Output label map (.nrrd .nii.gz .mha)")->required();
+  phantom->add_option("--voxel-size", phantomVoxel, "Voxel size in mm (default 1)");
+
+  auto* params = app.add_subcommand("parameters", "List the parameters accepted by --set");
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int rc = app.exit(e);
+    return rc == 0 ? 0 : exitCodeFor(ErrorCode::InvalidArgument);
+  }
+  if (xml) {
+    std::fputs(slicerXml().c_str(), stdout);
+    return 0;
+  }
+  try {
+    if (*mesh) return runMesh(meshOpts);
+    if (*quality) return runQuality(qualityMesh, qualityLabels, qualityJson);
+    if (*info) return runInfo(infoInput, infoJson);
+    if (*phantom) return runPhantom(phantomOut, phantomVoxel);
+    if (*params) {
+      for (const auto& d : parameterDescriptors())
+        std::printf("%-24s %-7s default %-10s %-8s %s\n", d.key.c_str(), d.type.c_str(),
+                    d.defaultValue.c_str(), d.unit.c_str(), d.help.c_str());
+      std::printf("%-24s %-7s %-18s %-8s %s\n", "material.<label>.E", "double", "", "MPa",
+                  "Young's modulus of one material in solver exports (also .nu, .density).");
+      return 0;
+    }
+  } catch (const Error& e) {
+    return fail(e.status());
+  } catch (const std::exception& e) {
+    return fail({ErrorCode::Internal, e.what()});
+  }
+  std::fputs(app.help().c_str(), stdout);
+  return exitCodeFor(ErrorCode::InvalidArgument);
+}

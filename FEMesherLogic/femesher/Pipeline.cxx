@@ -1,0 +1,217 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/Pipeline.h>
+#include <femesher/Version.h>
+#include <femesher/stages/BoundaryMesh.h>
+#include <femesher/stages/IndicatorFunctions.h>
+#include <femesher/stages/LabelPreprocess.h>
+#include <femesher/stages/SurfaceSampling.h>
+#include <femesher/stages/VolumeMesh.h>
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <set>
+
+namespace femesher {
+
+namespace {
+
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+/// Times a stage, tells the context where we are.
+class StageScope {
+ public:
+  StageScope(RunContext& ctx, std::vector<StageTiming>& timings, const std::string& name)
+      : ctx_(ctx), timings_(timings), name_(name), start_(Clock::now()) {
+    ctx_.beginStage(name);
+  }
+  ~StageScope() {
+    timings_.push_back({name_, std::chrono::duration<double>(Clock::now() - start_).count()});
+  }
+  void done() { ctx_.endStage(); }
+
+ private:
+  RunContext& ctx_;
+  std::vector<StageTiming>& timings_;
+  std::string name_;
+  Clock::time_point start_;
+};
+
+double resolvedEdgeLength(const LabelVolume& in, const MeshingParameters& p) {
+  if (p.targetEdgeLength > 0) return p.targetEdgeLength;
+  const double mean = (in.spacing[0] + in.spacing[1] + in.spacing[2]) / 3.0;
+  return p.edgeLengthFactor * mean;
+}
+
+json geometryJson(const LabelVolume& in) {
+  json g;
+  g["path"] = in.sourcePath;
+  g["dims"] = in.dims;
+  g["spacing"] = in.spacing;
+  g["origin"] = in.origin;
+  g["direction"] = in.direction;
+  g["space"] = "LPS";
+  return g;
+}
+
+}  // namespace
+
+std::vector<std::pair<std::string, double>> pipelineStagePlan(const MeshingParameters& params) {
+  std::vector<std::pair<std::string, double>> plan = {
+      {"LabelPreprocess", 2}, {"IndicatorFunctions", 15}, {"SurfaceSampling", 10},
+      {"BoundaryMesh", 15},   {"VolumeMesh", 40},         {"Quality", 3}};
+  if (params.computeFidelity) plan.emplace_back("Fidelity", 10);
+  return plan;
+}
+
+Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParameters& params,
+                                   RunContext& ctx) {
+  const auto start = Clock::now();
+  PipelineResult result;
+  if (Status s = validate(params); !s) return s;
+  if (params.threads > 0) ctx.setThreads(params.threads);
+  ctx.setStagePlan(pipelineStagePlan(params));
+  const double h = resolvedEdgeLength(input, params);
+  try {
+    // 1. Preprocess.
+    PreprocessedVolume vol;
+    {
+      StageScope st(ctx, result.timings, "LabelPreprocess");
+      LabelPreprocessParameters pp;
+      pp.minVoxels = params.minVoxels;
+      vol = preprocessLabels(input, pp, ctx);
+      st.done();
+    }
+    result.droppedLabels = vol.droppedLabels;
+    // 2. Indicator functions.
+    std::unique_ptr<IndicatorField> field;
+    {
+      StageScope st(ctx, result.timings, "IndicatorFunctions");
+      IndicatorParameters ip;
+      ip.sigma = params.smoothingSigma;
+      field = std::make_unique<IndicatorField>(computeIndicatorFunctions(vol, ip, ctx));
+      st.done();
+    }
+    // 3. Isosurface + sampling.
+    SurfaceSamples samples;
+    {
+      StageScope st(ctx, result.timings, "SurfaceSampling");
+      SurfaceSamplingParameters sp;
+      sp.targetEdgeLength = h;
+      sp.seed = params.seed;
+      samples = sampleInterfaces(*field, input, sp, ctx);
+      st.done();
+    }
+    // 4. Boundary mesh.
+    BoundarySurface surface;
+    {
+      StageScope st(ctx, result.timings, "BoundaryMesh");
+      surface = buildBoundaryMesh(*field, samples, ctx);
+      for (int m : surface.repairedLabels)
+        ctx.warn("Label " + std::to_string(vol.userLabel[m]) +
+                 " was too small for the element size; extra points were inserted to keep it.");
+      st.done();
+    }
+    // 5. Volume mesh.
+    VolumeMeshResult vm;
+    {
+      StageScope st(ctx, result.timings, "VolumeMesh");
+      VolumeMeshParameters vp;
+      vp.maxRadiusEdgeRatio = params.maxRadiusEdgeRatio;
+      vp.minDihedralAngle = params.minDihedralAngle;
+      vp.maxTetVolume = params.maxTetVolume;
+      vp.preserveInterfaces = params.preserveInterfaces;
+      vp.optimizationLevel = params.optimizationLevel;
+      vm = buildVolumeMesh(surface, vp, ctx);
+      st.done();
+    }
+    // To LPS and user labels. A left-handed direction flips orientation: swap two vertices.
+    TetMesh& mesh = result.mesh;
+    mesh.points.resize(vm.points.size());
+    for (size_t i = 0; i < vm.points.size(); ++i)
+      mesh.points[i] = input.canonicalToPhysical(vm.points[i]);
+    const bool flip = input.directionDeterminant() < 0;
+    mesh.tets = vm.tets;
+    if (flip)
+      for (auto& t : mesh.tets) std::swap(t[2], t[3]);
+    mesh.tetLabels.resize(vm.labels.size());
+    std::set<int32_t> present;
+    for (size_t t = 0; t < vm.labels.size(); ++t) {
+      mesh.tetLabels[t] = vol.userLabel[size_t(vm.labels[t])];
+      present.insert(vm.labels[t]);
+    }
+    for (int32_t m : present) mesh.materials.push_back(vol.materials[size_t(m)]);
+    for (int m = 1; m <= vol.materialCount(); ++m)
+      if (!present.count(m))
+        ctx.warn("Label " + std::to_string(vol.userLabel[m]) + " (" + vol.materials[m].name +
+                 ") is missing from the mesh.");
+    {
+      StageScope st(ctx, result.timings, "Quality");
+      result.quality = computeQuality(mesh, &ctx);
+      st.done();
+    }
+    if (params.computeFidelity) {
+      StageScope st(ctx, result.timings, "Fidelity");
+      result.fidelity = computeFidelity(input, mesh, &ctx);
+      result.hasFidelity = true;
+      st.done();
+    }
+    result.counts = {{"target_edge_length_mm", h},
+                     {"working_grid_voxels", double(vol.labels.size())},
+                     {"materials", double(vol.materialCount())},
+                     {"isosurface_triangles", double(samples.isosurfaceTriangles)},
+                     {"interface_candidates", double(samples.all.size())},
+                     {"surface_samples", double(samples.selected.size())},
+                     {"delaunay_vertices", double(surface.delaunayVertices)},
+                     {"delaunay_tets", double(surface.delaunayTets)},
+                     {"surface_vertices", double(surface.points.size())},
+                     {"surface_triangles", double(surface.triangles.size())},
+                     {"tetgen_regions", double(vm.regions)},
+                     {"vertices", double(mesh.points.size())},
+                     {"tets", double(mesh.tets.size())}};
+    result.warnings = ctx.warnings();
+    result.totalSeconds = std::chrono::duration<double>(Clock::now() - start).count();
+
+    json report;
+    report["femesher_version"] = FEMESHER_VERSION;
+    report["libraries"] = {{"ITK", FEMESHER_ITK_VERSION}, {"VTK", FEMESHER_VTK_VERSION},
+                           {"CGAL", FEMESHER_CGAL_VERSION}, {"TetGen", FEMESHER_TETGEN_VERSION}};
+    report["input"] = geometryJson(input);
+    json labels = json::array();
+    for (int m = 1; m <= vol.materialCount(); ++m)
+      labels.push_back({{"id", vol.userLabel[m]}, {"name", vol.materials[m].name},
+                        {"color", vol.materials[m].color}, {"voxels", vol.voxelCounts[m]},
+                        {"in_mesh", present.count(m) > 0}});
+    report["input"]["labels"] = labels;
+    report["input"]["dropped_labels"] = vol.droppedLabels;
+    report["parameters"] = json::parse(parametersToJson(params));
+    json stages = json::array();
+    for (const auto& t : result.timings) stages.push_back({{"name", t.name}, {"seconds", t.seconds}});
+    report["stages"] = stages;
+    report["total_seconds"] = result.totalSeconds;
+    json counts = json::object();
+    for (const auto& [k, v] : result.counts) counts[k] = v;
+    report["counts"] = counts;
+    report["volume_mesh"] = {{"method", vm.method}, {"tetgen_switches", vm.switches},
+                             {"dropped_cavity_tets", vm.droppedCavityTets}};
+    report["quality"] = json::parse(qualityReportToJson(result.quality, true));
+    if (result.hasFidelity) report["fidelity"] = json::parse(fidelityReportToJson(result.fidelity));
+    report["warnings"] = result.warnings;
+    report["status"] = "ok";
+    result.reportJson = report.dump(2);
+  } catch (const Error& e) {
+    return e.status();
+  } catch (const std::bad_alloc&) {
+    return Status(ErrorCode::MeshingFailed,
+                  "Out of memory while meshing. Use a larger element size (target_edge_length) "
+                  "or crop the label map.");
+  } catch (const std::exception& e) {
+    return Status(ErrorCode::Internal, std::string("Unexpected error: ") + e.what());
+  }
+  return result;
+}
+
+}  // namespace femesher

@@ -1,0 +1,54 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+/// \file BoundaryMesh.h
+/// Stage 8 ("Boundary Meshing"): 3-D Delaunay triangulation (CGAL) of all interface samples; each
+/// tet is labelled by the material at its circumcentre (argmax of the indicator functions; the
+/// centroid when the circumcentre leaves the grid), and every triangle between two tets of
+/// different labels is an interface triangle marked with its label pair. The result is a
+/// watertight, conformal multi-material surface that cannot self-intersect (all triangles are
+/// faces of one triangulation): the restricted Delaunay surface of the samples.
+///
+/// Repair: a kept label that no tet carries (too small for the sampling) gets all its dense
+/// interface samples and voxel centres inserted, and the labelling is redone (up to 3 rounds).
+/// All positions are in the canonical frame (mm).
+
+#include <femesher/Types.h>
+#include <femesher/stages/IndicatorFunctions.h>
+#include <femesher/stages/SurfaceSampling.h>
+
+#include <memory>
+#include <utility>
+#include <vector>
+
+namespace femesher {
+
+class RunContext;
+
+/// The labelled Delaunay triangulation, kept for labelling the volume mesh (opaque).
+class LabelledDelaunay {
+ public:
+  ~LabelledDelaunay();
+  /// Compact label of the Delaunay tet containing a canonical point (0 outside the hull).
+  int labelAt(const Vec3& canonical) const;
+  /// Number of tets per compact label.
+  std::vector<size_t> tetsPerLabel() const;
+  /// The labelled tets themselves (label != 0), canonical coordinates, compact labels.
+  void exportTets(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
+                  std::vector<int32_t>& labels) const;
+  struct Impl;
+  std::unique_ptr<Impl> impl;
+};
+
+struct BoundarySurface {
+  std::vector<Vec3> points;  ///< canonical mm; only vertices used by interface triangles
+  std::vector<std::array<int32_t, 3>> triangles;
+  std::vector<std::pair<uint16_t, uint16_t>> trianglePairs;  ///< compact labels, first < second
+  std::shared_ptr<LabelledDelaunay> delaunay;
+  size_t delaunayVertices = 0, delaunayTets = 0;
+  std::vector<int> repairedLabels;  ///< compact labels that needed extra points
+};
+
+BoundarySurface buildBoundaryMesh(const IndicatorField& field, const SurfaceSamples& samples,
+                                  RunContext& ctx);
+
+}  // namespace femesher

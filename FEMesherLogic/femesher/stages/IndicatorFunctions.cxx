@@ -1,0 +1,264 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/Parallel.h>
+#include <femesher/RunContext.h>
+#include <femesher/stages/IndicatorFunctions.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace femesher {
+
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::max() / 4;
+
+/// 1-D squared distance transform (lower envelope of parabolas, Felzenszwalb & Huttenlocher) on
+/// samples spaced `s` apart: d[q] = min_p f[p] + (s (q - p))^2.
+void distance1d(const float* f, int n, double s, float* d, int* v, double* z) {
+  int k = 0;
+  v[0] = 0;
+  z[0] = -std::numeric_limits<double>::infinity();
+  z[1] = std::numeric_limits<double>::infinity();
+  const double s2 = s * s;
+  for (int q = 1; q < n; ++q) {
+    if (f[q] >= kInf) continue;
+    if (f[v[0]] >= kInf) {  // first finite sample
+      v[0] = q;
+      continue;
+    }
+    double sPos;
+    for (;;) {
+      const int p = v[k];
+      sPos = ((f[q] + s2 * double(q) * q) - (f[p] + s2 * double(p) * p)) / (2.0 * s2 * (q - p));
+      if (sPos <= z[k] && k > 0) --k;
+      else break;
+    }
+    if (sPos <= z[k]) {  // k == 0 and the new parabola dominates everywhere
+      v[0] = q;
+      z[1] = std::numeric_limits<double>::infinity();
+      continue;
+    }
+    ++k;
+    v[k] = q;
+    z[k] = sPos;
+    z[k + 1] = std::numeric_limits<double>::infinity();
+  }
+  if (f[v[0]] >= kInf) {
+    for (int q = 0; q < n; ++q) d[q] = kInf;
+    return;
+  }
+  k = 0;
+  for (int q = 0; q < n; ++q) {
+    while (z[k + 1] < q) ++k;
+    const double dq = s * (q - v[k]);
+    d[q] = float(f[v[k]] + dq * dq);
+  }
+}
+
+/// Separable squared EDT in place on a box (x fastest); g = 0 at features, kInf elsewhere.
+void squaredEdt(std::vector<float>& g, const std::array<int, 3>& dims, const Vec3& spacing,
+                int threads) {
+  const size_t sx = 1, sy = size_t(dims[0]), sz = size_t(dims[0]) * dims[1];
+  const size_t strides[3] = {sx, sy, sz};
+  for (int axis = 0; axis < 3; ++axis) {
+    const int n = dims[axis];
+    const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+    const size_t lines = size_t(dims[a1]) * dims[a2];
+    parallelFor(lines, threads, [&](size_t b, size_t e, int) {
+      std::vector<float> f(n), d(n);
+      std::vector<int> v(n);
+      std::vector<double> z(n + 1);
+      for (size_t line = b; line < e; ++line) {
+        const size_t u = line % dims[a1], w = line / dims[a1];
+        const size_t base = u * strides[a1] + w * strides[a2];
+        const size_t st = strides[axis];
+        for (int q = 0; q < n; ++q) f[q] = g[base + q * st];
+        distance1d(f.data(), n, spacing[axis], d.data(), v.data(), z.data());
+        for (int q = 0; q < n; ++q) g[base + q * st] = d[q];
+      }
+    });
+  }
+}
+
+/// Separable Gaussian blur (sigma in voxels) in place; borders replicate.
+void gaussianBlur(std::vector<float>& g, const std::array<int, 3>& dims, double sigma, int threads) {
+  if (sigma <= 0) return;
+  const int r = std::max(1, int(std::ceil(3 * sigma)));
+  std::vector<float> kernel(2 * r + 1);
+  double sum = 0;
+  for (int i = -r; i <= r; ++i) sum += kernel[i + r] = float(std::exp(-0.5 * i * i / (sigma * sigma)));
+  for (auto& k : kernel) k = float(k / sum);
+  const size_t strides[3] = {1, size_t(dims[0]), size_t(dims[0]) * dims[1]};
+  for (int axis = 0; axis < 3; ++axis) {
+    const int n = dims[axis];
+    const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+    const size_t lines = size_t(dims[a1]) * dims[a2];
+    parallelFor(lines, threads, [&](size_t b, size_t e, int) {
+      std::vector<float> in(n);
+      for (size_t line = b; line < e; ++line) {
+        const size_t u = line % dims[a1], w = line / dims[a1];
+        const size_t base = u * strides[a1] + w * strides[a2];
+        const size_t st = strides[axis];
+        for (int q = 0; q < n; ++q) in[q] = g[base + q * st];
+        for (int q = 0; q < n; ++q) {
+          double acc = 0;
+          for (int t = -r; t <= r; ++t) acc += kernel[t + r] * in[std::clamp(q + t, 0, n - 1)];
+          g[base + q * st] = float(acc);
+        }
+      }
+    });
+  }
+}
+
+}  // namespace
+
+float IndicatorField::value(int m, int i, int j, int k) const {
+  const Box& b = boxes_[m];
+  const int x = i - b.lo[0], y = j - b.lo[1], z = k - b.lo[2];
+  if (x < 0 || y < 0 || z < 0 || x >= b.dims[0] || y >= b.dims[1] || z >= b.dims[2]) {
+    // Outside the grid everything is background (label 0).
+    const auto& d = vol_->dims;
+    if (m == 0 && (i < 0 || j < 0 || k < 0 || i >= d[0] || j >= d[1] || k >= d[2])) return -far_;
+    return far_;
+  }
+  return b.f[size_t(x) + size_t(b.dims[0]) * (size_t(y) + size_t(b.dims[1]) * size_t(z))];
+}
+
+double IndicatorField::eval(int m, const Vec3& l) const {
+  const int i = int(std::floor(l[0])), j = int(std::floor(l[1])), k = int(std::floor(l[2]));
+  const double u = l[0] - i, v = l[1] - j, w = l[2] - k;
+  double r = 0;
+  for (int c = 0; c < 8; ++c) {
+    const int di = c & 1, dj = (c >> 1) & 1, dk = (c >> 2) & 1;
+    const double wt = (di ? u : 1 - u) * (dj ? v : 1 - v) * (dk ? w : 1 - w);
+    if (wt != 0) r += wt * value(m, i + di, j + dj, k + dk);
+  }
+  return r;
+}
+
+Vec3 IndicatorField::gradient(int m, const Vec3& l) const {
+  const int i = int(std::floor(l[0])), j = int(std::floor(l[1])), k = int(std::floor(l[2]));
+  const double u = l[0] - i, v = l[1] - j, w = l[2] - k;
+  Vec3 g{0, 0, 0};
+  for (int c = 0; c < 8; ++c) {
+    const int di = c & 1, dj = (c >> 1) & 1, dk = (c >> 2) & 1;
+    const double f = value(m, i + di, j + dj, k + dk);
+    const double wu = di ? u : 1 - u, wv = dj ? v : 1 - v, ww = dk ? w : 1 - w;
+    g[0] += (di ? 1 : -1) * wv * ww * f;
+    g[1] += (dj ? 1 : -1) * wu * ww * f;
+    g[2] += (dk ? 1 : -1) * wu * wv * f;
+  }
+  return g;
+}
+
+int IndicatorField::cornerLabels(const Vec3& l, int out[8]) const {
+  const int i = int(std::floor(l[0])), j = int(std::floor(l[1])), k = int(std::floor(l[2]));
+  const auto& d = vol_->dims;
+  int n = 0;
+  for (int c = 0; c < 8; ++c) {
+    const int x = i + (c & 1), y = j + ((c >> 1) & 1), z = k + ((c >> 2) & 1);
+    int lab = 0;
+    if (x >= 0 && y >= 0 && z >= 0 && x < d[0] && y < d[1] && z < d[2]) lab = vol_->at(x, y, z);
+    bool seen = false;
+    for (int a = 0; a < n; ++a) seen |= out[a] == lab;
+    if (!seen) out[n++] = lab;
+  }
+  std::sort(out, out + n);
+  return n;
+}
+
+int IndicatorField::argmax(const Vec3& l) const {
+  int cand[8];
+  const int n = cornerLabels(l, cand);
+  if (n == 1) return cand[0];
+  int best = cand[0];
+  double bestValue = -std::numeric_limits<double>::infinity();
+  for (int a = 0; a < n; ++a) {
+    const double f = eval(cand[a], l);
+    if (f > bestValue) {
+      bestValue = f;
+      best = cand[a];
+    }
+  }
+  return best;
+}
+
+IndicatorField computeIndicatorFunctions(const PreprocessedVolume& vol,
+                                         const IndicatorParameters& params, RunContext& ctx) {
+  IndicatorField field;
+  field.vol_ = &vol;
+  const int nLabels = int(vol.userLabel.size());
+  const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+  const double smax = std::max({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+  const float bandMm = float(params.band * smax);
+  field.far_ = -bandMm;
+  const float offset = float(0.5 * smin);
+  const float eps = float(0.02 * smin);
+  const int threads = ctx.threads();
+
+  // Bounding boxes of every label.
+  std::vector<std::array<int, 3>> lo(nLabels, {{vol.dims[0], vol.dims[1], vol.dims[2]}});
+  std::vector<std::array<int, 3>> hi(nLabels, {{-1, -1, -1}});
+  for (int k = 0; k < vol.dims[2]; ++k)
+    for (int j = 0; j < vol.dims[1]; ++j)
+      for (int i = 0; i < vol.dims[0]; ++i) {
+        const int l = vol.at(i, j, k);
+        auto& a = lo[l];
+        auto& b = hi[l];
+        a[0] = std::min(a[0], i); b[0] = std::max(b[0], i);
+        a[1] = std::min(a[1], j); b[1] = std::max(b[1], j);
+        a[2] = std::min(a[2], k); b[2] = std::max(b[2], k);
+      }
+
+  const int pad = params.band + int(std::ceil(3 * params.sigma)) + 2;
+  double totalVoxels = 0;
+  std::vector<IndicatorField::Box> boxes(nLabels);
+  for (int m = 0; m < nLabels; ++m) {
+    auto& b = boxes[m];
+    if (hi[m][0] < 0) continue;  // label absent from the grid
+    for (int a = 0; a < 3; ++a) {
+      b.lo[a] = std::max(0, lo[m][a] - pad);
+      b.dims[a] = std::min(vol.dims[a] - 1, hi[m][a] + pad) - b.lo[a] + 1;
+    }
+    totalVoxels += double(b.dims[0]) * b.dims[1] * b.dims[2];
+  }
+  double doneVoxels = 0;
+  for (int m = 0; m < nLabels; ++m) {
+    auto& b = boxes[m];
+    const size_t n = size_t(b.dims[0]) * b.dims[1] * b.dims[2];
+    if (n == 0) continue;
+    ctx.checkCancel();
+    std::vector<uint8_t> inside(n);
+    for (int z = 0; z < b.dims[2]; ++z)
+      for (int y = 0; y < b.dims[1]; ++y)
+        for (int x = 0; x < b.dims[0]; ++x)
+          inside[size_t(x) + size_t(b.dims[0]) * (size_t(y) + size_t(b.dims[1]) * z)] =
+              vol.at(x + b.lo[0], y + b.lo[1], z + b.lo[2]) == m;
+    std::vector<float> dOut(n), dIn(n);
+    for (size_t p = 0; p < n; ++p) {
+      dOut[p] = inside[p] ? 0.f : kInf;
+      dIn[p] = inside[p] ? kInf : 0.f;
+    }
+    squaredEdt(dOut, b.dims, vol.spacing, threads);
+    ctx.checkCancel();
+    squaredEdt(dIn, b.dims, vol.spacing, threads);
+    ctx.checkCancel();
+    b.f.resize(n);
+    for (size_t p = 0; p < n; ++p) {
+      const float v = inside[p] ? std::sqrt(dIn[p]) - offset : offset - std::sqrt(dOut[p]);
+      b.f[p] = std::clamp(v, -bandMm, bandMm);
+    }
+    std::vector<float>().swap(dIn);
+    std::vector<float>().swap(dOut);
+    gaussianBlur(b.f, b.dims, params.sigma, threads);
+    for (size_t p = 0; p < n; ++p)
+      b.f[p] = inside[p] ? std::max(b.f[p], eps) : std::min(b.f[p], -eps);
+    doneVoxels += double(n);
+    ctx.progress(doneVoxels / std::max(1.0, totalVoxels));
+  }
+  field.boxes_ = std::move(boxes);
+  return field;
+}
+
+}  // namespace femesher

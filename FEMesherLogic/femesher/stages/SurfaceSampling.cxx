@@ -1,0 +1,201 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/Parallel.h>
+#include <femesher/RunContext.h>
+#include <femesher/stages/SurfaceSampling.h>
+
+#include <vtkDiscreteFlyingEdges3D.h>
+#include <vtkImageData.h>
+#include <vtkNew.h>
+#include <vtkPointData.h>
+#include <vtkPoints.h>
+#include <vtkPolyData.h>
+#include <vtkCellArray.h>
+#include <vtkUnsignedShortArray.h>
+#include <vtkIdList.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <unordered_map>
+
+namespace femesher {
+
+namespace {
+
+uint64_t mix64(uint64_t x) {
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+
+struct CellKey {
+  int64_t x, y, z;
+  bool operator==(const CellKey& o) const { return x == o.x && y == o.y && z == o.z; }
+};
+struct CellKeyHash {
+  size_t operator()(const CellKey& k) const {
+    return size_t(mix64(uint64_t(k.x) * 73856093ull ^ uint64_t(k.y) * 19349663ull ^
+                        uint64_t(k.z) * 83492791ull));
+  }
+};
+
+}  // namespace
+
+SurfaceSamples sampleInterfaces(const IndicatorField& field, const LabelVolume& input,
+                                const SurfaceSamplingParameters& params, RunContext& ctx) {
+  const PreprocessedVolume& vol = field.volume();
+  SurfaceSamples out;
+
+  // --- Marching cubes on the label grid (VTK) ----------------------------------------------
+  vtkNew<vtkImageData> image;
+  image->SetDimensions(vol.dims[0], vol.dims[1], vol.dims[2]);
+  image->SetSpacing(1, 1, 1);
+  image->SetOrigin(0, 0, 0);
+  vtkNew<vtkUnsignedShortArray> scalars;
+  scalars->SetArray(const_cast<uint16_t*>(vol.labels.data()), vtkIdType(vol.labels.size()), 1);
+  image->GetPointData()->SetScalars(scalars);
+  vtkNew<vtkDiscreteFlyingEdges3D> mc;
+  mc->SetInputData(image);
+  const int nMat = vol.materialCount();
+  mc->SetNumberOfContours(nMat);
+  for (int m = 1; m <= nMat; ++m) mc->SetValue(m - 1, m);
+  mc->ComputeNormalsOff();
+  mc->ComputeGradientsOff();
+  mc->ComputeScalarsOff();
+  mc->Update();
+  ctx.progress(0.3);
+  vtkPolyData* surface = mc->GetOutput();
+  const vtkIdType nPts = surface->GetNumberOfPoints();
+  out.isosurfaceTriangles = size_t(surface->GetNumberOfPolys());
+
+  // --- Relocate every vertex onto the smooth interface --------------------------------------
+  // Each vertex sits at the midpoint of a grid edge between two different labels.
+  std::vector<int64_t> edgeKey(nPts, -1);
+  std::vector<SurfaceSample> candidates(nPts);
+  parallelFor(size_t(nPts), ctx.threads(), [&](size_t b, size_t e, int) {
+    for (size_t id = b; id < e; ++id) {
+      double x[3];
+      surface->GetPoint(vtkIdType(id), x);
+      int axis = -1;
+      int p[3];
+      for (int a = 0; a < 3; ++a) {
+        const double fl = std::floor(x[a]);
+        if (std::fabs(x[a] - fl - 0.5) < 1e-3) axis = a;
+        p[a] = int(std::lround(x[a]));
+      }
+      if (axis < 0) continue;
+      p[axis] = int(std::floor(x[axis]));
+      int q[3] = {p[0], p[1], p[2]};
+      q[axis] += 1;
+      const int la = vol.at(p[0], p[1], p[2]), lb = vol.at(q[0], q[1], q[2]);
+      if (la == lb) continue;
+      const double g0 = double(field.value(la, p[0], p[1], p[2])) - field.value(lb, p[0], p[1], p[2]);
+      const double g1 = double(field.value(la, q[0], q[1], q[2])) - field.value(lb, q[0], q[1], q[2]);
+      if (!(g0 > 0 && g1 < 0)) continue;
+      const double t = g0 / (g0 - g1);
+      Vec3 pos{double(p[0]), double(p[1]), double(p[2])};
+      pos[axis] += t;
+      int corner[8];
+      const int nc = field.cornerLabels(pos, corner);
+      if (nc > 2) {
+        const int owner = field.argmax(pos);
+        if (owner != la && owner != lb) continue;  // inside a third material near a junction
+      }
+      SurfaceSample s;
+      s.local = pos;
+      s.a = uint16_t(std::min(la, lb));
+      s.b = uint16_t(std::max(la, lb));
+      s.junction = nc > 2;
+      candidates[id] = s;
+      edgeKey[id] = int64_t(vol.index(p[0], p[1], p[2])) * 3 + axis;
+    }
+  });
+  ctx.progress(0.5);
+
+  // Deduplicate (both sides of an interface produce the same edge vertex).
+  std::vector<uint32_t> order;
+  order.reserve(size_t(nPts));
+  for (vtkIdType id = 0; id < nPts; ++id)
+    if (edgeKey[id] >= 0) order.push_back(uint32_t(id));
+  std::sort(order.begin(), order.end(),
+            [&](uint32_t a, uint32_t b) { return edgeKey[a] < edgeKey[b]; });
+  order.erase(std::unique(order.begin(), order.end(),
+                          [&](uint32_t a, uint32_t b) { return edgeKey[a] == edgeKey[b]; }),
+              order.end());
+  out.all.reserve(order.size());
+  std::vector<uint64_t> priority;
+  priority.reserve(order.size());
+  for (uint32_t id : order) {
+    out.all.push_back(candidates[id]);
+    priority.push_back(mix64(uint64_t(edgeKey[id]) ^ mix64(params.seed)) >> 1);
+  }
+  ctx.progress(0.6);
+
+  // --- Poisson-disk selection ----------------------------------------------------------------
+  const double h = params.targetEdgeLength;
+  const double r = 0.75 * h, rAny = 0.3 * h;
+  std::vector<uint32_t> idx(out.all.size());
+  std::iota(idx.begin(), idx.end(), 0u);
+  std::sort(idx.begin(), idx.end(), [&](uint32_t a, uint32_t b) {
+    if (out.all[a].junction != out.all[b].junction) return out.all[a].junction;
+    return priority[a] < priority[b];
+  });
+  std::unordered_map<CellKey, std::vector<uint32_t>, CellKeyHash> grid;
+  grid.reserve(out.all.size() / 4 + 16);
+  auto canonical = [&](const SurfaceSample& s) { return vol.localToCanonical(s.local); };
+  size_t processed = 0;
+  for (uint32_t i : idx) {
+    if ((++processed & 0xFFFF) == 0) ctx.progress(0.6 + 0.35 * double(processed) / idx.size());
+    const SurfaceSample& s = out.all[i];
+    const Vec3 c = canonical(s);
+    const CellKey key{int64_t(std::floor(c[0] / r)), int64_t(std::floor(c[1] / r)),
+                      int64_t(std::floor(c[2] / r))};
+    bool ok = true;
+    for (int dz = -1; dz <= 1 && ok; ++dz)
+      for (int dy = -1; dy <= 1 && ok; ++dy)
+        for (int dx = -1; dx <= 1 && ok; ++dx) {
+          auto it = grid.find({key.x + dx, key.y + dy, key.z + dz});
+          if (it == grid.end()) continue;
+          for (uint32_t j : it->second) {
+            const SurfaceSample& t = out.all[j];
+            const Vec3 d = canonical(t);
+            const double dist2 = (c[0] - d[0]) * (c[0] - d[0]) + (c[1] - d[1]) * (c[1] - d[1]) +
+                                 (c[2] - d[2]) * (c[2] - d[2]);
+            const bool same = s.a == t.a && s.b == t.b;
+            if (dist2 < (same ? r * r : rAny * rAny)) {
+              ok = false;
+              break;
+            }
+          }
+        }
+    if (!ok) continue;
+    grid[key].push_back(i);
+    out.selected.push_back(i);
+  }
+
+  // --- Preview: the selected samples per interface, in LPS ---------------------------------
+  if (ctx.wantsPreview()) {
+    auto snap = std::make_shared<PreviewSnapshot>();
+    snap->stage = "SurfaceSampling";
+    snap->kind = "points";
+    std::unordered_map<uint32_t, int32_t> groupOf;
+    for (uint32_t i : out.selected) {
+      const SurfaceSample& s = out.all[i];
+      const uint32_t key = (uint32_t(s.a) << 16) | s.b;
+      auto it = groupOf.find(key);
+      if (it == groupOf.end()) {
+        it = groupOf.emplace(key, int32_t(snap->groups.size())).first;
+        snap->groups.emplace_back(s.a == 0 ? kExteriorLabel : vol.userLabel[s.a], vol.userLabel[s.b]);
+      }
+      const Vec3 p = input.canonicalToPhysical(canonical(s));
+      snap->points.push_back({float(p[0]), float(p[1]), float(p[2])});
+      snap->pointGroup.push_back(it->second);
+    }
+    ctx.preview(snap, true);
+  }
+  ctx.progress(1.0);
+  return out;
+}
+
+}  // namespace femesher

@@ -1,0 +1,45 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+/// \file VolumeMesh.h
+/// Stage 9 ("Volume Meshing"): TetGen 1.5 on the multi-material interface surface.
+/// Input PLC: the interface triangles (each shared triangle once, facet marker = interface id);
+/// switches p (PLC), q (radius-edge / min dihedral bound), A (region attributes: TetGen numbers
+/// the enclosed regions itself), Y (no Steiner points on the interfaces, so they stay exactly the
+/// sampled surface and conformal), O (optimisation), a (max volume, when set), Q (quiet).
+/// Each region gets the material of the labelled Delaunay tets it lies in (volume-weighted vote);
+/// enclosed background cavities are dropped. TetGen's thrown int is caught and mapped to a
+/// message; on failure the stage retries without Y, and as a last resort returns the labelled
+/// Delaunay tets themselves (each fallback is reported as a warning).
+
+#include <femesher/Types.h>
+#include <femesher/stages/BoundaryMesh.h>
+
+#include <string>
+#include <vector>
+
+namespace femesher {
+
+class RunContext;
+
+struct VolumeMeshParameters {
+  double maxRadiusEdgeRatio = 1.5;  ///< 0 = no quality refinement
+  double minDihedralAngle = 12.0;   ///< degrees
+  double maxTetVolume = 0;          ///< mm^3, 0 = none
+  bool preserveInterfaces = true;   ///< -Y
+  int optimizationLevel = 3;
+};
+
+struct VolumeMeshResult {
+  /// Canonical-frame mesh with *compact* labels (converted by the pipeline).
+  std::vector<Vec3> points;
+  std::vector<std::array<int32_t, 4>> tets;
+  std::vector<int32_t> labels;
+  std::string switches;          ///< TetGen switches actually used ("" for the Delaunay fallback)
+  std::string method;            ///< "tetgen", "tetgen-without-Y" or "delaunay-fallback"
+  size_t regions = 0, droppedCavityTets = 0;
+};
+
+VolumeMeshResult buildVolumeMesh(const BoundarySurface& surface, const VolumeMeshParameters& params,
+                                 RunContext& ctx);
+
+}  // namespace femesher

@@ -1,0 +1,188 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Black-box tests of the femesher CLI: sub-commands, exit codes, progress protocol, Slicer XML,
+cancel without partial output. Uses only the Python standard library."""
+import json
+import os
+import re
+import signal
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+import xml.etree.ElementTree as ET
+
+CLI = os.environ["FEMESHER_CLI"]
+DATA = os.environ.get("FEMESHER_DATA_DIR", "")
+TMP = tempfile.mkdtemp(prefix="cli_", dir=os.environ.get("FEMESHER_TMP"))
+IN_CI = os.environ.get("CI") == "true"
+
+# Exit codes of femesher (femesher::ErrorCode).
+EXIT = {"ok": 0, "invalid-argument": 2, "file-not-found": 3, "unreadable-file": 4,
+        "corrupt-file": 5, "not-a-label-map": 6, "empty-label-map": 7, "too-many-labels": 8,
+        "overlapping-segments": 9, "meshing-failed": 10, "write-failed": 11, "canceled": 12}
+
+failures = []
+passes = []
+
+
+def check(cond, msg):
+    if not cond:
+        failures.append(msg)
+        print("FAIL:", msg)
+    else:
+        passes.append(msg)
+        print("ok:  ", msg)
+
+
+def run(*args, timeout=900):
+    return subprocess.run([CLI, *args], capture_output=True, text=True, timeout=timeout,
+                          stdin=subprocess.DEVNULL)
+
+
+def write_nrrd(path, dims, values, type_name="unsigned char", fmt="B", dimension=3):
+    header = ("NRRD0004\ntype: %s\ndimension: %d\nsizes: %s\nspace directions: %s\n"
+              "encoding: raw\nendian: little\nspace: left-posterior-superior\n"
+              "space origin: (%s)\n\n") % (
+        type_name, dimension, " ".join(map(str, dims)),
+        " ".join("(" + ",".join("1" if i == j else "0" for j in range(dimension)) + ")"
+                 for i in range(dimension)),
+        ",".join("0" for _ in range(dimension)))
+    with open(path, "wb") as f:
+        f.write(header.encode())
+        f.write(struct.pack("<%d%s" % (len(values), fmt), *values))
+
+
+def ball_values(n, label=1):
+    c = (n - 1) / 2
+    vals = []
+    for k in range(n):
+        for j in range(n):
+            for i in range(n):
+                r2 = (i - c) ** 2 + (j - c) ** 2 + (k - c) ** 2
+                vals.append(label if r2 < (0.35 * n) ** 2 else (2 if r2 < (0.45 * n) ** 2 else 0))
+    return vals
+
+
+# --- help, version, xml ----------------------------------------------------------------------
+r = run("--version")
+check(r.returncode == 0 and "femesher" in r.stdout, "--version prints the version")
+r = run("--xml")
+check(r.returncode == 0, "--xml exits 0")
+root = ET.fromstring(r.stdout)
+check(root.tag == "executable", "--xml is a Slicer <executable> description")
+flags = [e.text for e in root.iter("longflag")]
+check(len(flags) >= 8, "--xml declares the parameters as long flags (%d)" % len(flags))
+check(root.find(".//image[@type='label']") is not None, "--xml declares a label-map input")
+
+# --- phantom and info -------------------------------------------------------------------------
+phantom = os.path.join(TMP, "phantom.nrrd")
+r = run("phantom", phantom)
+check(r.returncode == 0 and os.path.exists(phantom), "phantom writes a label map")
+r = run("info", phantom, "--json")
+check(r.returncode == 0, "info --json exits 0")
+info = json.loads(r.stdout)
+check(len([l for l in info["labels"] if l["id"] != 0]) >= 4, "phantom has >= 4 materials")
+check(info["quadruple_cells"] >= 1, "phantom has a quadruple point")
+
+# --- every XML flag is accepted (Slicer style: flags, then input, output) ----------------------
+small = os.path.join(TMP, "ball.nrrd")
+write_nrrd(small, (16, 16, 16), ball_values(16))
+args = []
+for e in root.iter():
+    if e.find("longflag") is None:
+        continue
+    default = e.find("default")
+    args += [e.find("longflag").text, default.text if default is not None else ""]
+out_vtu = os.path.join(TMP, "slicer_style.vtu")
+r = run(*args, small, out_vtu)
+check(r.returncode == 0 and os.path.exists(out_vtu),
+      "Slicer-style call with every XML flag at its default works (rc=%d %s)" % (r.returncode, r.stderr[-300:]))
+# Not a terminal -> Slicer progress protocol on stdout, monotone in [0, 1].
+prog = [float(x) for x in re.findall(r"<filter-progress>([0-9.eE+-]+)</filter-progress>", r.stdout)]
+check(len(prog) >= 5 and all(0 <= p <= 1 for p in prog), "filter-progress lines in [0,1]")
+check(all(b >= a - 1e-9 for a, b in zip(prog, prog[1:])), "filter-progress is monotone")
+check("<filter-start>" in r.stdout and "<filter-end>" in r.stdout, "filter-start/end present")
+
+# --- mesh with a report -------------------------------------------------------------------------
+report = os.path.join(TMP, "report.json")
+out_inp = os.path.join(TMP, "ball.inp")
+r = run("mesh", small, "-o", out_inp, "--report", report, "--set", "target_edge_length=1.5")
+check(r.returncode == 0, "mesh -o .inp --report exits 0")
+rep = json.load(open(report))
+check(rep["status"] == "ok" and rep["counts"]["tets"] > 0, "report has counts")
+check({s["name"] for s in rep["stages"]} >= {"LabelPreprocess", "VolumeMesh"}, "report has stage timings")
+check(rep["parameters"]["target_edge_length"] == 1.5, "report records the parameters")
+check(rep["input"]["space"] == "LPS", "report records the input geometry in LPS")
+
+# --- parameter files ---------------------------------------------------------------------------
+pfile = os.path.join(TMP, "params.json")
+r = run("mesh", small, "--save-parameters", pfile, "--set", "min_voxels=3", "--preset", "coarse")
+check(r.returncode == 0 and json.load(open(pfile))["min_voxels"] == 3, "--save-parameters writes JSON")
+r = run("mesh", small, "--parameters", pfile, "-o", os.path.join(TMP, "p.vtu"))
+check(r.returncode == 0, "--parameters FILE is accepted")
+
+# --- bad input: clear message, distinct exit code, no output file --------------------------------
+def expect_error(args, code, what, out=None):
+    r = run(*args)
+    ok = r.returncode == EXIT[code] and "error" in r.stderr
+    if out:
+        ok = ok and not os.path.exists(out)
+    check(ok, "%s -> exit %d (%s), got %d: %s" % (what, EXIT[code], code, r.returncode, r.stderr.strip()[:200]))
+
+
+missing = os.path.join(TMP, "does_not_exist.nrrd")
+o = os.path.join(TMP, "bad.vtu")
+expect_error(["mesh", missing, "-o", o], "file-not-found", "missing input", o)
+expect_error(["mesh", small, "-o", os.path.join(TMP, "x.obj")], "invalid-argument", "unsupported output")
+expect_error(["mesh", small, "-o", o, "--set", "bogus=1"], "invalid-argument", "unknown parameter", o)
+expect_error(["mesh", small, "-o", o, "--set", "min_dihedral_angle=60"], "invalid-argument", "out-of-range parameter", o)
+expect_error(["mesh", small, "-o", os.path.join(TMP, "no_dir", "x.vtu")], "write-failed", "missing output folder")
+empty = os.path.join(TMP, "empty.nrrd")
+write_nrrd(empty, (8, 8, 8), [0] * 512)
+expect_error(["mesh", empty, "-o", o], "empty-label-map", "background-only map", o)
+ct = os.path.join(TMP, "ct.nrrd")
+write_nrrd(ct, (8, 8, 8), [0.5 + i * 0.25 for i in range(512)], "float", "f")
+expect_error(["mesh", ct, "-o", o], "not-a-label-map", "float CT", o)
+flat = os.path.join(TMP, "flat.nrrd")
+write_nrrd(flat, (8, 8), [1] * 64, dimension=2)
+expect_error(["mesh", flat, "-o", o], "not-a-label-map", "2-D image", o)
+trunc = os.path.join(TMP, "trunc.nrrd")
+write_nrrd(trunc, (16, 16, 16), ball_values(16))
+with open(trunc, "rb") as f:
+    data = f.read()
+with open(trunc, "wb") as f:
+    f.write(data[:-1000])
+expect_error(["mesh", trunc, "-o", o], "corrupt-file", "truncated file", o)
+junk = os.path.join(TMP, "junk.nrrd")
+with open(junk, "w") as f:
+    f.write("this is not an image\n")
+expect_error(["info", junk], "unreadable-file", "not an image")
+frog_mhd = os.path.join(DATA, "orig", "frogtissue.mhd")
+if os.path.exists(frog_mhd):
+    expect_error(["info", frog_mhd], "corrupt-file", "MetaImage header that lies about its data")
+elif IN_CI:
+    check(False, "missing data file %s" % frog_mhd)
+
+# --- cancel (SIGINT) leaves no output ------------------------------------------------------------
+big = os.path.join(TMP, "big.nrrd")
+write_nrrd(big, (120, 120, 120), ball_values(120))
+out_big = os.path.join(TMP, "big.vtu")
+p = subprocess.Popen([CLI, "mesh", big, "-o", out_big, "--set", "target_edge_length=1"],
+                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+time.sleep(1.5)
+p.send_signal(signal.SIGINT)
+try:
+    _, err = p.communicate(timeout=600)
+except subprocess.TimeoutExpired:
+    p.kill()
+    err = "timeout"
+check(p.returncode in (EXIT["canceled"], 0), "SIGINT ends the run (rc=%s)" % p.returncode)
+if p.returncode == EXIT["canceled"]:
+    check(not os.path.exists(out_big), "canceled run leaves no output file")
+leftovers = [f for f in os.listdir(TMP) if ".tmp" in f]
+check(not leftovers, "no temporary files left behind: %s" % leftovers)
+
+print("checks: %d passed, %d failed" % (len(passes), len(failures)))
+sys.exit(1 if failures else 0)

@@ -1,0 +1,222 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// The meshing path on generated label maps: invariants, geometry handling, cancel, determinism.
+#include "MeshInvariants.h"
+
+#include <femesher/Pipeline.h>
+#include <femesher/stages/IndicatorFunctions.h>
+#include <femesher/stages/LabelPreprocess.h>
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+using namespace femesher;
+using namespace femesher::testing;
+
+namespace {
+
+/// Two touching balls (1, 2) inside a shell (3), background 0.
+LabelVolume ballsInShell(int n = 40) {
+  LabelVolume v;
+  v.dims = {n, n, n};
+  v.labels.assign(size_t(n) * n * n, 0);
+  const double c = (n - 1) / 2.0;
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const double x = i - c, y = j - c, z = k - c;
+        const double r = std::sqrt(x * x + y * y + z * z);
+        int l = 0;
+        if (r < 0.45 * n) l = 3;
+        if (r < 0.36 * n) l = x < 0 ? 1 : 2;
+        v.labels[v.index(i, j, k)] = l;
+      }
+  for (int id : {1, 2, 3}) v.materials.push_back({id, "m" + std::to_string(id), defaultLabelColor(id)});
+  return v;
+}
+
+size_t countLabel(const LabelVolume& v, int32_t l) {
+  return size_t(std::count(v.labels.begin(), v.labels.end(), l));
+}
+
+}  // namespace
+
+TEST(LabelPreprocess, CropsPadsCompactsAndDropsTinyLabels) {
+  LabelVolume v = ballsInShell(30);
+  v.labels[v.index(15, 15, 15)] = 77;  // one stray voxel inside a ball
+  RunContext ctx;
+  LabelPreprocessParameters p;
+  p.minVoxels = 5;
+  const PreprocessedVolume pv = preprocessLabels(v, p, ctx);
+  ASSERT_EQ(pv.droppedLabels, std::vector<int32_t>{77});
+  ASSERT_EQ(pv.materialCount(), 3);
+  EXPECT_EQ(pv.userLabel, (std::vector<int32_t>{0, 1, 2, 3}));
+  ASSERT_EQ(ctx.warnings().size(), 1u);
+  EXPECT_NE(ctx.warnings()[0].find("77"), std::string::npos);
+  // The stray voxel joined its neighbours (ball 1 or 2), so no voxel is lost from the balls.
+  EXPECT_EQ(pv.voxelCounts[1] + pv.voxelCounts[2], countLabel(v, 1) + countLabel(v, 2) + 1);
+  // Margin of background all around.
+  for (int a = 0; a < 3; ++a) EXPECT_GE(pv.offset[a], -3);
+  EXPECT_EQ(pv.at(0, 0, 0), 0);
+  EXPECT_EQ(pv.at(pv.dims[0] - 1, pv.dims[1] - 1, pv.dims[2] - 1), 0);
+}
+
+TEST(LabelPreprocess, EmptyMapIsAClearError) {
+  LabelVolume v;
+  v.dims = {4, 4, 4};
+  v.labels.assign(64, 0);
+  RunContext ctx;
+  try {
+    preprocessLabels(v, {}, ctx);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::EmptyLabelMap);
+  }
+}
+
+TEST(IndicatorFunctions, SignMatchesLabelsAtEveryVoxelCentre) {
+  LabelVolume v = ballsInShell(24);
+  v.spacing = {0.7, 0.4, 0.4};
+  RunContext ctx;
+  const PreprocessedVolume pv = preprocessLabels(v, {}, ctx);
+  const IndicatorField f = computeIndicatorFunctions(pv, {}, ctx);
+  size_t wrong = 0;
+  for (int k = 0; k < pv.dims[2]; ++k)
+    for (int j = 0; j < pv.dims[1]; ++j)
+      for (int i = 0; i < pv.dims[0]; ++i) {
+        const int l = pv.at(i, j, k);
+        if (f.argmax({double(i), double(j), double(k)}) != l) ++wrong;
+        if (!(f.value(l, i, j, k) > 0)) ++wrong;
+      }
+  EXPECT_EQ(wrong, 0u);
+  // The interface between two face-neighbours of different labels lies between their centres.
+  for (int i = 1; i < pv.dims[0] - 1; ++i) {
+    const int j = pv.dims[1] / 2, k = pv.dims[2] / 2;
+    const int a = pv.at(i, j, k), b = pv.at(i + 1, j, k);
+    if (a == b) continue;
+    const double ga = f.value(a, i, j, k) - f.value(b, i, j, k);
+    const double gb = f.value(a, i + 1, j, k) - f.value(b, i + 1, j, k);
+    EXPECT_GT(ga, 0);
+    EXPECT_LT(gb, 0);
+  }
+}
+
+TEST(MeshingPipeline, TwoBallsInAShellAreConformalAndFaithful) {
+  const LabelVolume v = ballsInShell(40);
+  MeshingParameters p;
+  RunContext ctx;
+  auto r = runPipeline(v, p, ctx);
+  ASSERT_TRUE(r.isOk()) << r.status().message();
+  const TetMesh& m = r->mesh;
+  expectConformal(m);
+  expectWithinLabelExtent(m, v);
+  EXPECT_EQ(meshLabels(m), (std::set<int32_t>{1, 2, 3}));
+  ASSERT_TRUE(r->hasFidelity);
+  for (const auto& mf : r->fidelity.materials) EXPECT_GE(mf.dice, 0.9) << "label " << mf.label;
+  EXPECT_TRUE(r->fidelity.missingLabels.empty());
+  // Interfaces between the two balls and between balls and shell exist.
+  std::set<std::pair<int, int>> pairs;
+  for (const auto& t : extractInterfaces(m)) pairs.insert({t.labelA, t.labelB});
+  EXPECT_TRUE(pairs.count({1, 2}));
+  EXPECT_TRUE(pairs.count({1, 3}));
+  EXPECT_TRUE(pairs.count({2, 3}));
+  EXPECT_TRUE(pairs.count({3, kExteriorLabel}));
+  EXPECT_FALSE(pairs.count({1, kExteriorLabel}));  // the balls are enclosed by the shell
+  EXPECT_NE(r->reportJson.find("\"stages\""), std::string::npos);
+}
+
+TEST(MeshingPipeline, ObliqueLeftHandedAnisotropicGeometryIsKept) {
+  LabelVolume v = ballsInShell(32);
+  v.spacing = {0.7, 0.36, 0.36};
+  v.origin = {-24.0, 51.8, -57.1};
+  const double c = std::cos(0.21), s = std::sin(0.21);
+  v.direction = {-c, s, 0, -s, -c, 0, 0, 0, -1};  // det = -1
+  ASSERT_LT(v.directionDeterminant(), 0);
+  RunContext ctx;
+  auto r = runPipeline(v, MeshingParameters{}, ctx);
+  ASSERT_TRUE(r.isOk()) << r.status().message();
+  expectConformal(r->mesh);
+  expectWithinLabelExtent(r->mesh, v);
+  for (const auto& mf : r->fidelity.materials) EXPECT_GE(mf.dice, 0.85) << "label " << mf.label;
+}
+
+TEST(MeshingPipeline, LabelMapWithoutBackgroundMeshesTheWholeBox) {
+  LabelVolume v = ballsInShell(24);
+  for (auto& l : v.labels)
+    if (l == 0) l = 4;
+  RunContext ctx;
+  auto r = runPipeline(v, MeshingParameters{}, ctx);
+  ASSERT_TRUE(r.isOk()) << r.status().message();
+  EXPECT_EQ(meshLabels(r->mesh), (std::set<int32_t>{1, 2, 3, 4}));
+  double volume = 0;
+  for (size_t t = 0; t < r->mesh.tets.size(); ++t) volume += r->mesh.tetVolume(t);
+  // The box of voxel centres is 23^3; smoothing rounds the box corners slightly.
+  EXPECT_NEAR(volume, 23.0 * 23 * 23, 0.05 * 23 * 23 * 23);
+}
+
+TEST(MeshingPipeline, TinyLabelsArePresentOrReported) {
+  LabelVolume v = ballsInShell(30);
+  // A 2x2x2 label inside ball 1 and a 1-voxel label in the shell.
+  for (int k = 10; k < 12; ++k)
+    for (int j = 14; j < 16; ++j)
+      for (int i = 8; i < 10; ++i) v.labels[v.index(i, j, k)] = 8;
+  v.labels[v.index(15, 15, 2)] = 9;
+  MeshingParameters p;
+  p.minVoxels = 1;
+  RunContext ctx;
+  auto r = runPipeline(v, p, ctx);
+  ASSERT_TRUE(r.isOk()) << r.status().message();
+  const auto labels = meshLabels(r->mesh);
+  EXPECT_TRUE(labels.count(8));
+  EXPECT_TRUE(labels.count(9));
+  expectConformal(r->mesh);
+}
+
+TEST(MeshingPipeline, SameSeedSameMesh) {
+  const LabelVolume v = ballsInShell(28);
+  MeshingParameters p;
+  p.threads = 2;
+  RunContext c1, c2;
+  auto a = runPipeline(v, p, c1);
+  auto b = runPipeline(v, p, c2);
+  ASSERT_TRUE(a.isOk() && b.isOk());
+  EXPECT_EQ(a->mesh.tets, b->mesh.tets);
+  EXPECT_EQ(a->mesh.points, b->mesh.points);
+}
+
+TEST(MeshingPipeline, CancelFromAnotherThreadStopsWithinASecond) {
+  const LabelVolume v = ballsInShell(96);
+  RunContext ctx;
+  std::atomic<bool> started{false};
+  ctx.setProgressCallback([&](const std::string&, double, double) { started = true; });
+  Result<PipelineResult> r(ErrorCode::Internal, "not run");
+  std::chrono::steady_clock::time_point canceledAt, returnedAt;
+  std::thread worker([&] {
+    r = runPipeline(v, MeshingParameters{}, ctx);
+    returnedAt = std::chrono::steady_clock::now();
+  });
+  while (!started) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  canceledAt = std::chrono::steady_clock::now();
+  ctx.cancel();
+  worker.join();
+  ASSERT_FALSE(r.isOk());
+  EXPECT_EQ(r.status().code(), ErrorCode::Canceled);
+  // No wall-clock assertion (shared machines); the latency is recorded for the log.
+  RecordProperty("cancel_latency_ms",
+                 int(std::chrono::duration<double, std::milli>(returnedAt - canceledAt).count()));
+}
+
+TEST(MeshingPipeline, ProgressIsMonotone) {
+  const LabelVolume v = ballsInShell(24);
+  RunContext ctx;
+  std::vector<double> totals;
+  ctx.setProgressCallback([&](const std::string&, double, double t) { totals.push_back(t); });
+  auto r = runPipeline(v, MeshingParameters{}, ctx);
+  ASSERT_TRUE(r.isOk());
+  ASSERT_GT(totals.size(), 5u);
+  for (size_t i = 1; i < totals.size(); ++i) EXPECT_GE(totals[i], totals[i - 1] - 1e-12);
+  EXPECT_NEAR(totals.back(), 1.0, 1e-9);
+}

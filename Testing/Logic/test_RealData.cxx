@@ -1,0 +1,105 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// `femesher mesh` on every real label map in FEMESHER_DATA_DIR and on the phantom, with the
+// foundation's acceptance invariants: labels present, conformal, no inverted tets, interfaces
+// between different materials, Dice >= 0.85 for labels of >= 1,000 voxels, points within one voxel
+// of the labels' physical extent.
+#include "MeshInvariants.h"
+
+#include <femesher/Phantom.h>
+#include <femesher/Pipeline.h>
+#include <femesher/io/LabelMapIO.h>
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <map>
+
+using namespace femesher;
+using namespace femesher::testing;
+
+namespace {
+
+struct Case {
+  std::string file;
+  int64_t minVoxels;
+};
+
+std::ostream& operator<<(std::ostream& os, const Case& c) { return os << c.file; }
+
+void checkVolume(const LabelVolume& v, const MeshingParameters& p, const std::string& name) {
+  RunContext ctx;
+  auto r = runPipeline(v, p, ctx);
+  ASSERT_TRUE(r.isOk()) << name << ": " << r.status().message();
+  const TetMesh& m = r->mesh;
+  ASSERT_GT(m.tets.size(), 0u);
+  expectConformal(m);
+  expectWithinLabelExtent(m, v);
+
+  std::map<int32_t, size_t> voxels;
+  for (int32_t l : v.labels) ++voxels[l];
+  const bool noBackground = !voxels.count(0);
+  const auto present = meshLabels(m);
+  for (const auto& [label, count] : voxels) {
+    if (label == 0) continue;
+    if (int64_t(count) >= p.minVoxels)
+      EXPECT_TRUE(present.count(label)) << name << ": label " << label << " (" << count
+                                        << " voxels) is missing from the mesh";
+  }
+  ASSERT_TRUE(r->hasFidelity);
+  std::string summary;
+  for (const auto& mf : r->fidelity.materials) {
+    if (mf.voxels >= 1000)
+      EXPECT_GE(mf.dice, 0.85) << name << ": label " << mf.label << " (" << mf.voxels << " voxels)";
+    char buf[96];
+    std::snprintf(buf, sizeof buf, " %d:%.3f", mf.label, mf.dice);
+    summary += buf;
+  }
+  size_t below10 = 0;
+  if (const auto* md = r->quality.all.find("min_dihedral")) below10 = md->badCount;
+  double seconds = r->totalSeconds;
+  std::printf("[real-data] %s: %zu tets, %zu vertices, %.1f s, min dihedral < 10deg: %.2f%%, "
+              "Dice%s%s\n",
+              name.c_str(), m.tets.size(), m.points.size(), seconds,
+              100.0 * double(below10) / double(m.tets.size()), summary.c_str(),
+              noBackground ? " (no background)" : "");
+  for (const auto& t : r->timings) std::printf("[real-data]   %-20s %7.2f s\n", t.name.c_str(), t.seconds);
+}
+
+class RealData : public ::testing::TestWithParam<Case> {};
+
+}  // namespace
+
+TEST_P(RealData, MeshesWithAllLabelsConformalAndFaithful) {
+  const Case& c = GetParam();
+  const std::string path = dataFile(c.file);
+  if (!std::filesystem::exists(path)) {
+    if (inCI()) FAIL() << "missing data file " << path;
+    GTEST_SKIP() << "missing data file " << path;
+  }
+  auto v = readLabelMap(path);
+  ASSERT_TRUE(v.isOk()) << v.status().message();
+  MeshingParameters p;
+  p.minVoxels = c.minVoxels;
+  checkVolume(v.value(), p, c.file);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    SharedData, RealData,
+    ::testing::Values(Case{"420.nrrd", 1}, Case{"40420.nrrd", 1}, Case{"12323.nrrd", 1},
+                      Case{"20012323.nrrd", 1}, Case{"mickey.nrrd", 10},
+                      Case{"spheres_argmax.nrrd", 10}, Case{"colin27_v3.nrrd", 10},
+                      Case{"digimouse.nrrd", 10}, Case{"frogtissue.nrrd", 10},
+                      Case{"example_seg.nii.gz", 10}, Case{"example_seg_dicom.nii.gz", 10},
+                      Case{"9135902_00m_WB01.nii.gz", 10}),
+    [](const ::testing::TestParamInfo<Case>& info) {
+      std::string n = info.param.file;
+      for (auto& ch : n)
+        if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+      return n;
+    });
+
+TEST(RealDataPhantom, BuiltInPhantomMeshes) {
+  const LabelVolume v = makePhantom();
+  checkVolume(v, MeshingParameters{}, "phantom");
+}
