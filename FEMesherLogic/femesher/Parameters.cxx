@@ -58,6 +58,11 @@ const std::vector<Binding>& bindings() {
          "target_edge_length is 0.", false},
         [](MeshingParameters& p, double x) { p.edgeLengthFactor = x; },
         [](const MeshingParameters& p) { return p.edgeLengthFactor; });
+    add({"particle_iterations", "int", "", "", 0, 1000, "Particle iterations",
+         "Maximum iterations of the surface particle system (it stops earlier when converged); "
+         "0 uses the initial samples as they are.", true},
+        [](MeshingParameters& p, double x) { p.particleIterations = int(x); },
+        [](const MeshingParameters& p) { return double(p.particleIterations); });
     add({"max_radius_edge_ratio", "double", "", "", 0, 10, "Quality bound (radius-edge)",
          "TetGen's bound on the circumradius / shortest edge of each tet (-q). 0 disables quality "
          "refinement. Values below about 1.2 may not terminate.", true},

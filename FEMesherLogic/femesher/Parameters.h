@@ -42,6 +42,10 @@ struct MeshingParameters {
   /// targetEdgeLength == 0). Presets: coarse 3, default 2, fine 1.25.
   double edgeLengthFactor = 2.0;
 
+  // --- Junctions and particle system ---------------------------------------------------------
+  /// Particle-system iterations (0 = use the Poisson-disk samples as they are).
+  int particleIterations = 30;
+
   // --- Volume meshing (TetGen) ------------------------------------------------------------------
   /// TetGen quality bound: maximum radius-edge ratio (-q). 0 disables quality refinement.
   double maxRadiusEdgeRatio = 1.5;

@@ -3,7 +3,9 @@
 #include <femesher/Version.h>
 #include <femesher/stages/BoundaryMesh.h>
 #include <femesher/stages/IndicatorFunctions.h>
+#include <femesher/stages/Junctions.h>
 #include <femesher/stages/LabelPreprocess.h>
+#include <femesher/stages/ParticleSystem.h>
 #include <femesher/stages/SurfaceSampling.h>
 #include <femesher/stages/VolumeMesh.h>
 
@@ -61,8 +63,9 @@ json geometryJson(const LabelVolume& in) {
 
 std::vector<std::pair<std::string, double>> pipelineStagePlan(const MeshingParameters& params) {
   std::vector<std::pair<std::string, double>> plan = {
-      {"LabelPreprocess", 2}, {"IndicatorFunctions", 15}, {"SurfaceSampling", 10},
-      {"BoundaryMesh", 15},   {"VolumeMesh", 40},         {"Quality", 3}};
+      {"LabelPreprocess", 2}, {"IndicatorFunctions", 12}, {"SurfaceSampling", 8},
+      {"Junctions", 5},       {"ParticleSystem", 20},     {"BoundaryMesh", 10},
+      {"VolumeMesh", 30},     {"Quality", 3}};
   if (params.computeFidelity) plan.emplace_back("Fidelity", 10);
   return plan;
 }
@@ -105,11 +108,37 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
       samples = sampleInterfaces(*field, input, sp, ctx);
       st.done();
     }
-    // 4. Boundary mesh.
+    const SizingFunction sizing = [h](const Vec3&) { return h; };
+    // 4. Junctions (crossing seeds).
+    Junctions junctions;
+    {
+      StageScope st(ctx, result.timings, "Junctions");
+      junctions = findJunctions(*field, sizing, JunctionParameters{}, ctx);
+      st.done();
+    }
+    // 5. Particle system.
+    std::vector<Vec3> particles;
+    ParticleSystemResult ps;
+    {
+      StageScope st(ctx, result.timings, "ParticleSystem");
+      if (params.particleIterations > 0) {
+        ParticleSystemParameters pp;
+        pp.maxIterations = params.particleIterations;
+        pp.seed = params.seed;
+        ps = runParticleSystem(*field, samples, junctions, sizing, input, pp, ctx);
+        particles.reserve(ps.particles.size());
+        for (const auto& p : ps.particles) particles.push_back(p.local);
+      } else {
+        for (const auto& j : junctions.particles) particles.push_back(j.local);
+        for (uint32_t i : samples.selected) particles.push_back(samples.all[i].local);
+      }
+      st.done();
+    }
+    // 6. Boundary mesh.
     BoundarySurface surface;
     {
       StageScope st(ctx, result.timings, "BoundaryMesh");
-      surface = buildBoundaryMesh(*field, samples, ctx);
+      surface = buildBoundaryMesh(*field, particles, samples, ctx);
       for (int m : surface.repairedLabels)
         ctx.warn("Label " + std::to_string(vol.userLabel[m]) +
                  " was too small for the element size; extra points were inserted to keep it.");
@@ -165,6 +194,15 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
                      {"isosurface_triangles", double(samples.isosurfaceTriangles)},
                      {"interface_candidates", double(samples.all.size())},
                      {"surface_samples", double(samples.selected.size())},
+                     {"junction_cells", double(junctions.tripleCells)},
+                     {"quadruple_cells", double(junctions.quadrupleCells)},
+                     {"junction_particles", double(junctions.particles.size())},
+                     {"quadruple_points", double(junctions.quadruplePoints)},
+                     {"particles", double(particles.size())},
+                     {"particle_iterations", double(ps.iterations)},
+                     {"particle_converged", ps.converged ? 1.0 : 0.0},
+                     {"particle_energy", ps.finalEnergy},
+                     {"particle_spacing_ratio", ps.meanSpacingRatio},
                      {"delaunay_vertices", double(surface.delaunayVertices)},
                      {"delaunay_tets", double(surface.delaunayTets)},
                      {"surface_vertices", double(surface.points.size())},

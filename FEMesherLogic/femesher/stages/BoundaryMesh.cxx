@@ -102,8 +102,8 @@ void labelAll(const IndicatorField& field, Delaunay& dt, RunContext& ctx) {
 
 }  // namespace
 
-BoundarySurface buildBoundaryMesh(const IndicatorField& field, const SurfaceSamples& samples,
-                                  RunContext& ctx) {
+BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector<Vec3>& points,
+                                  const SurfaceSamples& samples, RunContext& ctx) {
   const PreprocessedVolume& vol = field.volume();
   auto ld = std::make_shared<LabelledDelaunay>();
   ld->impl = std::make_unique<LabelledDelaunay::Impl>();
@@ -111,9 +111,9 @@ BoundarySurface buildBoundaryMesh(const IndicatorField& field, const SurfaceSamp
   Delaunay& dt = ld->impl->dt;
 
   std::vector<std::pair<Point, int32_t>> pts;
-  pts.reserve(samples.selected.size());
-  for (uint32_t i : samples.selected) {
-    const Vec3 c = vol.localToCanonical(samples.all[i].local);
+  pts.reserve(points.size());
+  for (const Vec3& l : points) {
+    const Vec3 c = vol.localToCanonical(l);
     pts.emplace_back(Point(c[0], c[1], c[2]), int32_t(pts.size()));
   }
   if (pts.size() < 4)

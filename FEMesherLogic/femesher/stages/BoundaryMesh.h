@@ -48,7 +48,9 @@ struct BoundarySurface {
   std::vector<int> repairedLabels;  ///< compact labels that needed extra points
 };
 
-BoundarySurface buildBoundaryMesh(const IndicatorField& field, const SurfaceSamples& samples,
-                                  RunContext& ctx);
+/// `points`: the particles (local voxel index positions). `dense`: every interface vertex, used
+/// to repair labels that the particles miss.
+BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector<Vec3>& points,
+                                  const SurfaceSamples& dense, RunContext& ctx);
 
 }  // namespace femesher

@@ -5,8 +5,14 @@
 
 #include <tetgen.h>
 
+#include <poll.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
+#include <cerrno>
 #include <cstring>
 #include <map>
 #include <sstream>
@@ -35,9 +41,17 @@ double signedVolume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) 
           u[2] * (v[0] * w[1] - v[1] * w[0])) / 6.0;
 }
 
-/// Runs TetGen; returns false (and the error text) when it throws.
-bool runTetgen(const BoundarySurface& s, const std::string& switches, tetgenio& out,
+/// TetGen's output as plain arrays.
+struct TetgenOutput {
+  std::vector<double> points;  // 3 per point
+  std::vector<int32_t> tets;   // 4 per tet
+  std::vector<double> regions; // 1 per tet (region attribute) or empty
+};
+
+/// Runs TetGen in this process; returns false (and the error text) when it throws.
+bool runTetgen(const BoundarySurface& s, const std::string& switches, TetgenOutput& result,
                std::string& error) {
+  tetgenio out;
   tetgenio in;
   in.firstnumber = 0;
   in.numberofpoints = int(s.points.size());
@@ -76,6 +90,120 @@ bool runTetgen(const BoundarySurface& s, const std::string& switches, tetgenio& 
     error = "TetGen produced no tetrahedra";
     return false;
   }
+  result.points.assign(out.pointlist, out.pointlist + 3 * size_t(out.numberofpoints));
+  result.tets.assign(out.tetrahedronlist, out.tetrahedronlist + 4 * size_t(out.numberoftetrahedra));
+  result.regions.clear();
+  if (out.numberoftetrahedronattributes > 0) {
+    result.regions.resize(size_t(out.numberoftetrahedra));
+    for (int t = 0; t < out.numberoftetrahedra; ++t)
+      result.regions[t] = out.tetrahedronattributelist[size_t(t) * out.numberoftetrahedronattributes];
+  }
+  return true;
+}
+
+bool writeAll(int fd, const void* data, size_t n) {
+  const char* p = static_cast<const char*>(data);
+  while (n > 0) {
+    const ssize_t w = ::write(fd, p, n);
+    if (w <= 0) return false;
+    p += w;
+    n -= size_t(w);
+  }
+  return true;
+}
+
+/// Runs TetGen in a child process so that a cancel request can stop it at once (TetGen itself
+/// has no cancel hook): the parent polls the cancel token while it reads the result from a pipe,
+/// and kills the child when asked to stop. Falls back to in-process when fork() fails.
+bool runTetgenCancelable(const BoundarySurface& s, const std::string& switches,
+                         TetgenOutput& result, std::string& error, RunContext& ctx) {
+  int fds[2];
+  if (::pipe(fds) != 0) return runTetgen(s, switches, result, error);
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    ::close(fds[0]);
+    ::close(fds[1]);
+    return runTetgen(s, switches, result, error);
+  }
+  if (pid == 0) {  // child: mesh, stream the result, leave without running any exit handler
+    ::close(fds[0]);
+    TetgenOutput r;
+    std::string err;
+    const bool ok = runTetgen(s, switches, r, err);
+    const int32_t status = ok ? 0 : 1;
+    bool w = writeAll(fds[1], &status, sizeof status);
+    if (ok) {
+      const uint64_t n[3] = {r.points.size(), r.tets.size(), r.regions.size()};
+      w = w && writeAll(fds[1], n, sizeof n) &&
+          writeAll(fds[1], r.points.data(), r.points.size() * sizeof(double)) &&
+          writeAll(fds[1], r.tets.data(), r.tets.size() * sizeof(int32_t)) &&
+          writeAll(fds[1], r.regions.data(), r.regions.size() * sizeof(double));
+    } else {
+      const uint64_t len = err.size();
+      w = w && writeAll(fds[1], &len, sizeof len) && writeAll(fds[1], err.data(), err.size());
+    }
+    ::close(fds[1]);
+    ::_exit(w ? 0 : 3);
+  }
+  ::close(fds[1]);
+  std::vector<char> buffer;
+  char chunk[1 << 16];
+  bool canceled = false;
+  for (;;) {
+    if (ctx.isCanceled()) {
+      canceled = true;
+      break;
+    }
+    pollfd pfd{fds[0], POLLIN, 0};
+    const int pr = ::poll(&pfd, 1, 100);
+    if (pr < 0 && errno != EINTR) break;
+    if (pr <= 0) continue;
+    const ssize_t n = ::read(fds[0], chunk, sizeof chunk);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    buffer.insert(buffer.end(), chunk, chunk + n);
+  }
+  ::close(fds[0]);
+  if (canceled) ::kill(pid, SIGKILL);
+  int wstatus = 0;
+  while (::waitpid(pid, &wstatus, 0) < 0 && errno == EINTR) {
+  }
+  if (canceled) ctx.checkCancel();
+  size_t pos = 0;
+  auto take = [&](void* dst, size_t n) {
+    if (pos + n > buffer.size()) return false;
+    std::memcpy(dst, buffer.data() + pos, n);
+    pos += n;
+    return true;
+  };
+  int32_t status = -1;
+  if (!take(&status, sizeof status)) {
+    error = WIFSIGNALED(wstatus) ? "TetGen crashed (signal " + std::to_string(WTERMSIG(wstatus)) + ")"
+                                 : std::string("TetGen ended without a result");
+    return false;
+  }
+  if (status != 0) {
+    uint64_t len = 0;
+    if (take(&len, sizeof len) && pos + len <= buffer.size())
+      error.assign(buffer.data() + pos, size_t(len));
+    else
+      error = "TetGen failed";
+    return false;
+  }
+  uint64_t n[3];
+  if (!take(n, sizeof n)) {
+    error = "TetGen result was cut short";
+    return false;
+  }
+  result.points.resize(n[0]);
+  result.tets.resize(n[1]);
+  result.regions.resize(n[2]);
+  if (!take(result.points.data(), n[0] * sizeof(double)) ||
+      !take(result.tets.data(), n[1] * sizeof(int32_t)) ||
+      !take(result.regions.data(), n[2] * sizeof(double))) {
+    error = "TetGen result was cut short";
+    return false;
+  }
   return true;
 }
 
@@ -102,29 +230,29 @@ VolumeMeshResult buildVolumeMesh(const BoundarySurface& s, const VolumeMeshParam
 
   for (const auto& [switches, method] : attempts) {
     ctx.checkCancel();
-    tetgenio out;
+    TetgenOutput out;
     std::string error;
-    if (!runTetgen(s, switches, out, error)) {
+    if (!runTetgenCancelable(s, switches, out, error, ctx)) {
       ctx.warn("Volume meshing with TetGen switches '" + switches + "' failed: " + error + ".");
       continue;
     }
     ctx.progress(0.7);
     ctx.checkCancel();
-    const int nt = out.numberoftetrahedra;
-    const bool hasRegions = out.numberoftetrahedronattributes > 0;
-    std::vector<Vec3> pts(size_t(out.numberofpoints));
-    for (int i = 0; i < out.numberofpoints; ++i)
-      pts[i] = {out.pointlist[3 * i], out.pointlist[3 * i + 1], out.pointlist[3 * i + 2]};
+    const int nt = int(out.tets.size() / 4);
+    const bool hasRegions = !out.regions.empty();
+    std::vector<Vec3> pts(out.points.size() / 3);
+    for (size_t i = 0; i < pts.size(); ++i)
+      pts[i] = {out.points[3 * i], out.points[3 * i + 1], out.points[3 * i + 2]};
     // Label: per region a volume-weighted vote of the Delaunay labels at tet centroids.
     std::vector<int> region(nt, 0);
     if (hasRegions)
       for (int t = 0; t < nt; ++t)
-        region[t] = int(std::lround(out.tetrahedronattributelist[t * out.numberoftetrahedronattributes]));
+        region[t] = int(std::lround(out.regions[t]));
     std::map<int, std::map<int, double>> votes;
     std::map<int, int> sampled;
     std::vector<int> tetLabel(nt, -1);
     for (int t = 0; t < nt; ++t) {
-      const int* T = &out.tetrahedronlist[4 * t];
+      const int32_t* T = &out.tets[4 * size_t(t)];
       const int r = hasRegions ? region[t] : -1 - t;
       if (hasRegions && sampled[r] >= 400) continue;
       const Vec3 c{(pts[T[0]][0] + pts[T[1]][0] + pts[T[2]][0] + pts[T[3]][0]) / 4,
@@ -161,7 +289,7 @@ VolumeMeshResult buildVolumeMesh(const BoundarySurface& s, const VolumeMeshParam
       }
       std::array<int32_t, 4> T;
       for (int k = 0; k < 4; ++k) {
-        const int v = out.tetrahedronlist[4 * t + k];
+        const int v = out.tets[4 * size_t(t) + k];
         if (newId[v] < 0) {
           newId[v] = int32_t(result.points.size());
           result.points.push_back(pts[v]);

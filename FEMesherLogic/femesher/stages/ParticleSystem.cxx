@@ -1,0 +1,473 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/Parallel.h>
+#include <femesher/RunContext.h>
+#include <femesher/stages/ParticleSystem.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <unordered_map>
+
+namespace femesher {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+double kernel(double r, double s) {
+  if (r >= s) return 0;
+  const double t = std::max(kPi * r / (2 * s), 1e-6);
+  return 1.0 / std::tan(t) + t - kPi / 2;
+}
+double kernelDerivative(double r, double s) {
+  if (r >= s) return 0;
+  const double t = std::max(kPi * r / (2 * s), 1e-6);
+  const double c = 1.0 / std::tan(t);
+  return -(kPi / (2 * s)) * c * c;
+}
+
+double kernelSecondDerivative(double r, double s) {
+  if (r >= s) return 0;
+  const double t = std::max(kPi * r / (2 * s), 1e-6);
+  const double c = 1.0 / std::tan(t), sn = std::sin(t);
+  const double w = kPi / (2 * s);
+  return w * w * 2.0 * c / (sn * sn);
+}
+
+double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+uint64_t mix64(uint64_t x) {
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+
+struct Surface {
+  const IndicatorField& f;
+  const PreprocessedVolume& vol;
+  double smin;
+
+  Vec3 canonical(const Vec3& l) const { return vol.localToCanonical(l); }
+  Vec3 toLocal(const Vec3& c) const { return vol.canonicalToLocal(c); }
+  /// grad (f_a - f_b) in canonical coordinates
+  Vec3 grad(int a, int b, const Vec3& l) const {
+    const Vec3 ga = f.gradient(a, l), gb = f.gradient(b, l);
+    return {(ga[0] - gb[0]) / vol.spacing[0], (ga[1] - gb[1]) / vol.spacing[1],
+            (ga[2] - gb[2]) / vol.spacing[2]};
+  }
+  Vec3 normal(int a, int b, const Vec3& l) const {
+    Vec3 g = grad(a, b, l);
+    const double n = std::sqrt(dot(g, g));
+    if (n > 0)
+      for (auto& v : g) v /= n;
+    return g;
+  }
+  /// Newton projection onto f_a = f_b; true when converged with a, b leading.
+  bool project(int a, int b, Vec3& l) const {
+    const double tol = 1e-4 * smin;
+    for (int it = 0; it < 10; ++it) {
+      const double F = f.eval(a, l) - f.eval(b, l);
+      if (std::fabs(F) < tol) {
+        int cand[8];
+        const int nc = f.cornerLabels(l, cand);
+        if (nc <= 2) return true;
+        const double fab = f.eval(a, l);
+        for (int c = 0; c < nc; ++c)
+          if (cand[c] != a && cand[c] != b && f.eval(cand[c], l) > fab + 10 * tol) return false;
+        return true;
+      }
+      const Vec3 g = grad(a, b, l);
+      const double g2 = dot(g, g);
+      if (g2 < 1e-20) return false;
+      Vec3 step{-F * g[0] / g2, -F * g[1] / g2, -F * g[2] / g2};
+      const double len = std::sqrt(dot(step, step));
+      if (len > 0.5 * smin)
+        for (auto& s : step) s *= 0.5 * smin / len;
+      const Vec3 c = canonical(l);
+      l = toLocal({c[0] + step[0], c[1] + step[1], c[2] + step[2]});
+    }
+    return false;
+  }
+};
+
+struct CellKey {
+  int64_t x, y, z;
+  bool operator==(const CellKey& o) const { return x == o.x && y == o.y && z == o.z; }
+};
+struct CellKeyHash {
+  size_t operator()(const CellKey& k) const {
+    return size_t(mix64(uint64_t(k.x) * 73856093ull ^ uint64_t(k.y) * 19349663ull ^
+                        uint64_t(k.z) * 83492791ull));
+  }
+};
+
+/// Uniform grid over canonical positions (counting sort into a dense cell array), rebuilt every
+/// iteration.
+struct Grid {
+  double cell = 1;
+  Vec3 lo{0, 0, 0};
+  int64_t dims[3] = {1, 1, 1};
+  std::vector<uint32_t> start, items;
+  int64_t clampIdx(double v, int a) const {
+    return std::clamp<int64_t>(int64_t(std::floor((v - lo[a]) / cell)), 0, dims[a] - 1);
+  }
+  void build(const std::vector<Vec3>& pos) {
+    Vec3 hi{-1e300, -1e300, -1e300};
+    lo = {1e300, 1e300, 1e300};
+    for (const auto& p : pos)
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = std::min(lo[a], p[a]);
+        hi[a] = std::max(hi[a], p[a]);
+      }
+    if (pos.empty()) lo = hi = {0, 0, 0};
+    // Keep the cell array at most ~8 cells per item (and >= the requested cell size).
+    for (;;) {
+      for (int a = 0; a < 3; ++a) dims[a] = int64_t((hi[a] - lo[a]) / cell) + 1;
+      if (double(dims[0]) * dims[1] * dims[2] <= 8.0 * double(pos.size()) + 64) break;
+      cell *= 1.25;
+    }
+    const size_t nc = size_t(dims[0] * dims[1] * dims[2]);
+    start.assign(nc + 1, 0);
+    std::vector<uint32_t> cellOf(pos.size());
+    for (size_t i = 0; i < pos.size(); ++i) {
+      const int64_t c = clampIdx(pos[i][0], 0) +
+                        dims[0] * (clampIdx(pos[i][1], 1) + dims[1] * clampIdx(pos[i][2], 2));
+      cellOf[i] = uint32_t(c);
+      ++start[size_t(c) + 1];
+    }
+    for (size_t c = 0; c < nc; ++c) start[c + 1] += start[c];
+    items.resize(pos.size());
+    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+    for (size_t i = 0; i < pos.size(); ++i) items[fill[cellOf[i]]++] = uint32_t(i);
+  }
+  template <class F>
+  void forEachNear(const Vec3& c, double radius, F&& fn) const {
+    int64_t a0[3], a1[3];
+    for (int a = 0; a < 3; ++a) {
+      a0[a] = clampIdx(c[a] - radius, a);
+      a1[a] = clampIdx(c[a] + radius, a);
+    }
+    for (int64_t z = a0[2]; z <= a1[2]; ++z)
+      for (int64_t y = a0[1]; y <= a1[1]; ++y) {
+        const int64_t row = dims[0] * (y + dims[1] * z);
+        for (uint32_t k = start[size_t(row + a0[0])]; k < start[size_t(row + a1[0] + 1)]; ++k)
+          fn(items[k]);
+      }
+  }
+};
+
+}  // namespace
+
+ParticleSystemResult runParticleSystem(const IndicatorField& field, const SurfaceSamples& seeds,
+                                       const Junctions& junctions, const SizingFunction& sizing,
+                                       const LabelVolume& input,
+                                       const ParticleSystemParameters& params, RunContext& ctx) {
+  const PreprocessedVolume& vol = field.volume();
+  const Surface S{field, vol, std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]})};
+  const double k = params.kernelScale;
+  const double maxStepFactor = params.maxStepFactor;
+  ParticleSystemResult res;
+
+  // --- Particles: fixed junction particles, then seeds away from them ----------------------
+  std::vector<Particle> P;
+  for (size_t j = 0; j < junctions.particles.size(); ++j) {
+    Particle p;
+    p.local = junctions.particles[j].local;
+    p.a = junctions.particles[j].labels[0];
+    p.b = junctions.particles[j].labels[1];
+    p.junction = int32_t(j);
+    P.push_back(p);
+  }
+  const size_t nFixed = P.size();
+  {
+    std::vector<Vec3> jc(nFixed);
+    double hMax = S.smin;
+    for (size_t i = 0; i < nFixed; ++i) {
+      jc[i] = S.canonical(P[i].local);
+      hMax = std::max(hMax, sizing(jc[i]));
+    }
+    Grid g;
+    g.cell = hMax;
+    g.build(jc);
+    for (uint32_t s : seeds.selected) {
+      const SurfaceSample& smp = seeds.all[s];
+      const Vec3 c = S.canonical(smp.local);
+      const double h = sizing(c);
+      bool nearJunction = false;
+      g.forEachNear(c, 0.5 * h, [&](uint32_t j) {
+        const Vec3 d{c[0] - jc[j][0], c[1] - jc[j][1], c[2] - jc[j][2]};
+        if (dot(d, d) < 0.25 * h * h && junctions.particles[j].contains(smp.a, smp.b))
+          nearJunction = true;
+      });
+      if (nearJunction) continue;
+      Particle p;
+      p.local = smp.local;
+      p.a = smp.a;
+      p.b = smp.b;
+      P.push_back(p);
+    }
+  }
+
+  std::vector<double> lambda(P.size(), -1.0);
+  int stableIterations = 0;
+  bool populationChanged = true;
+  const int threads = resolveThreads(ctx.threads());
+
+  auto sendPreview = [&](int iteration, bool force) {
+    if (!ctx.wantsPreview()) return;
+    auto snap = std::make_shared<PreviewSnapshot>();
+    snap->stage = "ParticleSystem";
+    snap->kind = "points";
+    snap->iteration = iteration;
+    std::unordered_map<uint32_t, int32_t> groupOf;
+    for (const auto& p : P) {
+      const uint32_t key = (uint32_t(p.a) << 16) | p.b;
+      auto it = groupOf.find(key);
+      if (it == groupOf.end()) {
+        it = groupOf.emplace(key, int32_t(snap->groups.size())).first;
+        snap->groups.emplace_back(p.a == 0 ? kExteriorLabel : vol.userLabel[p.a], vol.userLabel[p.b]);
+      }
+      const Vec3 x = input.canonicalToPhysical(S.canonical(p.local));
+      snap->points.push_back({float(x[0]), float(x[1]), float(x[2])});
+      snap->pointGroup.push_back(it->second);
+    }
+    ctx.preview(snap, force);
+  };
+
+  int iteration = 0;
+  for (; iteration < params.maxIterations; ++iteration) {
+    ctx.checkCancel();
+    const size_t n = P.size();
+    std::vector<Vec3> pos(n), nrm(n);
+    std::vector<double> h(n);
+    double hMax = S.smin;
+    for (size_t i = 0; i < n; ++i) {
+      pos[i] = S.canonical(P[i].local);
+      h[i] = sizing(pos[i]);
+      hMax = std::max(hMax, h[i]);
+      nrm[i] = P[i].junction < 0 ? S.normal(P[i].a, P[i].b, P[i].local) : Vec3{0, 0, 0};
+    }
+    Grid grid;
+    grid.cell = k * hMax;
+    grid.build(pos);
+
+    auto neighbours = [&](size_t i, std::vector<std::pair<uint32_t, double>>& out) {
+      out.clear();
+      const Particle& p = P[i];
+      grid.forEachNear(pos[i], k * h[i], [&](uint32_t j) {
+        if (j == i) return;
+        const Particle& q = P[j];
+        if (q.junction >= 0) {
+          if (!junctions.particles[size_t(q.junction)].contains(p.a, p.b)) return;
+        } else if (q.a != p.a || q.b != p.b || dot(nrm[i], nrm[j]) < 0.5) {
+          return;
+        }
+        const double s = k * std::min(h[i], h[j]);
+        const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
+        if (dot(d, d) < s * s) out.emplace_back(j, s);
+      });
+    };
+    auto energyAt = [&](const Vec3& x, const std::vector<std::pair<uint32_t, double>>& nb) {
+      double e = 0;
+      for (const auto& [j, s] : nb) {
+        const Vec3 d{x[0] - pos[j][0], x[1] - pos[j][1], x[2] - pos[j][2]};
+        e += kernel(std::sqrt(dot(d, d)), s);
+      }
+      return e;
+    };
+
+    std::vector<Vec3> next(n);
+    std::vector<double> moved(n, 0.0), energy(n, 0.0), nearest(n, 1e300);
+    std::vector<char> lost(n, 0);
+    std::vector<int32_t> nearestId(n, -1);
+    parallelFor(n, threads, [&](size_t b, size_t e, int) {
+      std::vector<std::pair<uint32_t, double>> nb;
+      for (size_t i = b; i < e; ++i) {
+        next[i] = P[i].local;
+        if (P[i].junction >= 0) continue;
+        neighbours(i, nb);
+        for (const auto& [j, s] : nb) {
+          const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
+          const double r = std::sqrt(dot(d, d));
+          if (r < nearest[i]) {
+            nearest[i] = r;
+            nearestId[i] = int32_t(j);
+          }
+        }
+        const double e0 = energyAt(pos[i], nb);
+        energy[i] = e0;
+        Vec3 g{0, 0, 0};
+        double stiffness = 0;
+        for (const auto& [j, s] : nb) {
+          const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
+          const double r = std::max(std::sqrt(dot(d, d)), 1e-12);
+          const double dE = kernelDerivative(r, s);
+          for (int a = 0; a < 3; ++a) g[a] += dE * d[a] / r;
+          stiffness += kernelSecondDerivative(r, s);
+        }
+        const double gn = dot(g, nrm[i]);
+        for (int a = 0; a < 3; ++a) g[a] -= gn * nrm[i][a];
+        const double gl = std::sqrt(dot(g, g));
+        if (gl < 1e-12 || stiffness <= 0) continue;
+        // Damped Newton step along the tangential force: -f g / H with H the summed radial
+        // stiffness of the kernel; f adapts per particle (x1.25 on success, x0.5 on failure)
+        // within [0.05, 0.5], which keeps the simultaneous (Jacobi) update from oscillating.
+        double& f = lambda[i];
+        if (f <= 0) f = 0.25;
+        for (int attempt = 0; attempt < 3; ++attempt) {
+          double step = f * gl / stiffness;
+          const double cap = maxStepFactor * h[i];
+          const double scale = step > cap ? cap / step : 1.0;
+          const double mul = f * scale / stiffness;
+          const Vec3 c{pos[i][0] - mul * g[0], pos[i][1] - mul * g[1], pos[i][2] - mul * g[2]};
+          Vec3 l = S.toLocal(c);
+          if (!S.project(P[i].a, P[i].b, l)) {
+            f = std::max(f * 0.5, 0.05);
+            continue;
+          }
+          const Vec3 cp = S.canonical(l);
+          if (energyAt(cp, nb) < e0) {
+            next[i] = l;
+            const Vec3 d{cp[0] - pos[i][0], cp[1] - pos[i][1], cp[2] - pos[i][2]};
+            moved[i] = std::sqrt(dot(d, d)) / h[i];
+            f = std::min(f * 1.25, 0.5);
+            break;
+          }
+          f = std::max(f * 0.5, 0.05);
+        }
+        // A seed that cannot be projected onto its interface at all is dropped.
+        if (iteration == 0) {
+          Vec3 check = next[i];
+          if (!S.project(P[i].a, P[i].b, check)) lost[i] = 1;
+        }
+      }
+    });
+    double maxMove = 0, total = 0;
+    for (size_t i = 0; i < n; ++i) {
+      P[i].local = next[i];
+      maxMove = std::max(maxMove, moved[i]);
+      total += energy[i];
+    }
+    // 95th percentile of the moves of the surface particles (relative to h).
+    double p95 = 0;
+    if (n > nFixed) {
+      std::vector<double> m(moved.begin() + long(nFixed), moved.end());
+      const size_t q = size_t(0.95 * double(m.size() - 1));
+      std::nth_element(m.begin(), m.begin() + long(q), m.end());
+      p95 = m[q];
+    }
+    res.finalEnergy = total;
+    ctx.debug("ParticleSystem iteration " + std::to_string(iteration) + ": " + std::to_string(n) +
+              " particles, energy " + std::to_string(total) + ", moves/h p95 " +
+              std::to_string(p95) + " max " + std::to_string(maxMove));
+    res.finalMaxMove = maxMove;
+    res.finalMoveP95 = p95;
+    stableIterations = p95 < params.tolerance ? stableIterations + 1 : 0;
+
+    // Population control (sequential, deterministic).
+    const bool populationStep = (iteration + 1) % params.populationInterval == 0 &&
+                                iteration + 1 < params.maxIterations;
+    if (populationStep || std::any_of(lost.begin(), lost.end(), [](char c) { return c != 0; })) {
+      std::vector<char> remove(n, 0);
+      std::vector<Particle> added;
+      for (size_t i = nFixed; i < n; ++i) {
+        if (lost[i]) {
+          remove[i] = 1;
+          ++res.lost;
+          continue;
+        }
+        if (!populationStep) continue;
+        const int32_t j = nearestId[i];
+        if (j >= 0 && nearest[i] < params.minSpacingFactor * h[i] &&
+            (P[size_t(j)].junction >= 0 || size_t(j) < i) && !remove[size_t(j)]) {
+          remove[i] = 1;
+          ++res.removed;
+          continue;
+        }
+        const double ideal = 6.0 * kernel(h[i], k * h[i]);
+        if (energy[i] < params.splitEnergyFactor * ideal) {
+          // split: new particle half a spacing away in a seeded tangent direction
+          const Vec3& nn = nrm[i];
+          Vec3 t1 = std::fabs(nn[0]) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
+          const double d1 = dot(t1, nn);
+          for (int a = 0; a < 3; ++a) t1[a] -= d1 * nn[a];
+          const double l1 = std::sqrt(dot(t1, t1));
+          for (auto& v : t1) v /= l1;
+          const Vec3 t2{nn[1] * t1[2] - nn[2] * t1[1], nn[2] * t1[0] - nn[0] * t1[2],
+                        nn[0] * t1[1] - nn[1] * t1[0]};
+          const double ang = double(mix64(params.seed ^ (uint64_t(i) << 20) ^ uint64_t(iteration)) % 6283) / 1000.0;
+          const Vec3 c = S.canonical(P[i].local);
+          Vec3 l = S.toLocal({c[0] + 0.5 * h[i] * (std::cos(ang) * t1[0] + std::sin(ang) * t2[0]),
+                              c[1] + 0.5 * h[i] * (std::cos(ang) * t1[1] + std::sin(ang) * t2[1]),
+                              c[2] + 0.5 * h[i] * (std::cos(ang) * t1[2] + std::sin(ang) * t2[2])});
+          if (S.project(P[i].a, P[i].b, l)) {
+            Particle q = P[i];
+            q.local = l;
+            added.push_back(q);
+          }
+        }
+      }
+      std::vector<Particle> kept;
+      std::vector<double> keptLambda;
+      kept.reserve(n + added.size());
+      for (size_t i = 0; i < n; ++i)
+        if (!remove[i]) {
+          kept.push_back(P[i]);
+          keptLambda.push_back(lambda[i]);
+        }
+      res.added += added.size();
+      for (const auto& q : added) {
+        kept.push_back(q);
+        keptLambda.push_back(-1.0);
+      }
+      if (populationStep) populationChanged = kept.size() != n || !added.empty();
+      P.swap(kept);
+      lambda.swap(keptLambda);
+    }
+    ctx.progress(double(iteration + 1) / params.maxIterations);
+    sendPreview(iteration, false);
+    if (stableIterations >= 3 && !populationChanged) {
+      res.converged = true;
+      ++iteration;
+      break;
+    }
+  }
+  res.iterations = iteration;
+
+  // Spacing statistics (nearest neighbour on the same interface / h).
+  {
+    const size_t n = P.size();
+    std::vector<Vec3> pos(n);
+    double hMax = S.smin;
+    for (size_t i = 0; i < n; ++i) {
+      pos[i] = S.canonical(P[i].local);
+      hMax = std::max(hMax, sizing(pos[i]));
+    }
+    Grid grid;
+    grid.cell = 2 * hMax;
+    grid.build(pos);
+    double sum = 0;
+    size_t count = 0;
+    for (size_t i = nFixed; i < n; ++i) {
+      const double h = sizing(pos[i]);
+      double best = 1e300;
+      grid.forEachNear(pos[i], 2 * h, [&](uint32_t j) {
+        if (j == i || P[j].junction >= 0 || P[j].a != P[i].a || P[j].b != P[i].b) return;
+        const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
+        best = std::min(best, std::sqrt(dot(d, d)));
+      });
+      if (best < 1e299) {
+        sum += best / h;
+        ++count;
+      }
+    }
+    res.meanSpacingRatio = count ? sum / double(count) : 0;
+  }
+  sendPreview(iteration, true);
+  res.particles = std::move(P);
+  return res;
+}
+
+}  // namespace femesher
