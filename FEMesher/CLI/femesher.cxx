@@ -137,7 +137,10 @@ std::string slicerXml() {
       << "</description>\n";
     for (const auto& d : parameterDescriptors()) {
       if (d.advanced != advanced) continue;
-      const std::string tag = d.type == "bool" ? "boolean" : d.type == "int" ? "integer" : "double";
+      const std::string tag = d.type == "bool"     ? "boolean"
+                              : d.type == "int"    ? "integer"
+                              : d.type == "choice" ? "string-enumeration"
+                                                   : "double";
       std::string name = d.key;
       for (auto& c : name)
         if (c == '.') c = '_';
@@ -147,7 +150,8 @@ std::string slicerXml() {
         << "</label>\n      <longflag>--" << flagName(d.key) << "</longflag>\n      <description>"
         << xmlEscape(d.help) << (d.unit.empty() ? "" : " Unit: " + xmlEscape(d.unit) + ".")
         << "</description>\n      <default>" << def << "</default>\n";
-      if (d.type != "bool")
+      for (const auto& c : d.choices) x << "      <element>" << c << "</element>\n";
+      if (d.type != "bool" && d.type != "choice")
         x << "      <constraints>\n        <minimum>" << d.minimum << "</minimum>\n        <maximum>"
           << d.maximum << "</maximum>\n      </constraints>\n";
       x << "    </" << tag << ">\n";

@@ -116,6 +116,20 @@ const std::vector<Binding>& bindings() {
   return b;
 }
 
+ParameterDescriptor surfaceMesherDescriptor() {
+  ParameterDescriptor d;
+  d.key = "surface_mesher";
+  d.type = "choice";
+  d.defaultValue = "delaunay";
+  d.label = "Surface mesher";
+  d.help = "How the interface triangles are made from the particles: 'delaunay' (restricted "
+           "Delaunay, watertight by construction) or 'ldt' (local Delaunay triangulation in each "
+           "particle's tangent plane with natural-neighbour 1-rings; holes are counted and filled).";
+  d.advanced = true;
+  d.choices = {"delaunay", "ldt"};
+  return d;
+}
+
 const Binding* findBinding(const std::string& key) {
   for (const auto& b : bindings())
     if (b.desc.key == key) return &b;
@@ -179,6 +193,7 @@ const std::vector<ParameterDescriptor>& parameterDescriptors() {
   static const std::vector<ParameterDescriptor> d = [] {
     std::vector<ParameterDescriptor> v;
     for (const auto& b : bindings()) v.push_back(b.desc);
+    v.push_back(surfaceMesherDescriptor());
     return v;
   }();
   return d;
@@ -186,6 +201,13 @@ const std::vector<ParameterDescriptor>& parameterDescriptors() {
 
 Status setParameter(MeshingParameters& params, const std::string& key, const std::string& value) {
   if (key.rfind("material.", 0) == 0) return setMaterialParameter(params, key, value);
+  if (key == "surface_mesher") {
+    if (value != "delaunay" && value != "ldt")
+      return {ErrorCode::InvalidArgument,
+              "Parameter 'surface_mesher' = '" + value + "': use 'delaunay' or 'ldt'"};
+    params.surfaceMesher = value;
+    return Status::ok();
+  }
   const Binding* b = findBinding(key);
   if (!b) {
     std::string known;
@@ -207,6 +229,7 @@ Status setParameter(MeshingParameters& params, const std::string& key, const std
 }
 
 std::string getParameter(const MeshingParameters& params, const std::string& key) {
+  if (key == "surface_mesher") return params.surfaceMesher;
   const Binding* b = findBinding(key);
   if (!b) return {};
   const double v = b->get(params);
@@ -239,6 +262,7 @@ std::string parametersToJson(const MeshingParameters& params) {
     else if (b.desc.type == "int") j[b.desc.key] = int64_t(v);
     else j[b.desc.key] = v;
   }
+  j["surface_mesher"] = params.surfaceMesher;
   json mats = json::object();
   for (const auto& [label, m] : params.materialProperties)
     mats[std::to_string(label)] = {{"E", m.youngsModulus}, {"nu", m.poissonRatio},
@@ -307,6 +331,8 @@ Result<MeshingParameters> loadParametersFile(const std::string& path,
 
 Status validate(const MeshingParameters& p) {
   if (p.minVoxels < 1) return {ErrorCode::InvalidArgument, "min_voxels must be >= 1"};
+  if (p.surfaceMesher != "delaunay" && p.surfaceMesher != "ldt")
+    return {ErrorCode::InvalidArgument, "surface_mesher must be 'delaunay' or 'ldt'"};
   if (p.smoothingSigma < 0) return {ErrorCode::InvalidArgument, "smoothing_sigma must be >= 0"};
   if (p.maxRadiusEdgeRatio != 0 && p.maxRadiusEdgeRatio < 1.05)
     return {ErrorCode::InvalidArgument,

@@ -45,6 +45,9 @@ struct MeshingParameters {
   // --- Junctions and particle system ---------------------------------------------------------
   /// Particle-system iterations (0 = use the Poisson-disk samples as they are).
   int particleIterations = 30;
+  /// Surface mesher: "delaunay" (restricted Delaunay of the particles) or "ldt" (local Delaunay
+  /// triangulation in tangent space, natural-neighbour 1-rings).
+  std::string surfaceMesher = "delaunay";
 
   // --- Volume meshing (TetGen) ------------------------------------------------------------------
   /// TetGen quality bound: maximum radius-edge ratio (-q). 0 disables quality refinement.
@@ -74,13 +77,14 @@ struct MeshingParameters {
 /// Description of one settable parameter.
 struct ParameterDescriptor {
   std::string key;          ///< as used by --set and JSON, e.g. "target_edge_length"
-  std::string type;         ///< "double", "int", "bool"
+  std::string type;         ///< "double", "int", "bool", "choice"
   std::string unit;         ///< "mm", "voxels", "degrees", "" ...
   std::string defaultValue; ///< as text
   double minimum = 0, maximum = 0;  ///< valid range (inclusive) for numbers
   std::string label;        ///< short human label ("Target edge length")
   std::string help;         ///< one or two sentences for tooltips and --help
   bool advanced = false;
+  std::vector<std::string> choices;  ///< for type "choice"
 };
 
 const std::vector<ParameterDescriptor>& parameterDescriptors();

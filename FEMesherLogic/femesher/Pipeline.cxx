@@ -5,6 +5,7 @@
 #include <femesher/stages/IndicatorFunctions.h>
 #include <femesher/stages/Junctions.h>
 #include <femesher/stages/LabelPreprocess.h>
+#include <femesher/stages/LocalDelaunay.h>
 #include <femesher/stages/ParticleSystem.h>
 #include <femesher/stages/SurfaceSampling.h>
 #include <femesher/stages/VolumeMesh.h>
@@ -136,9 +137,53 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
     }
     // 6. Boundary mesh.
     BoundarySurface surface;
+    LocalDelaunayResult ldt;
+    const bool useLdt = params.surfaceMesher == "ldt";
     {
       StageScope st(ctx, result.timings, "BoundaryMesh");
       surface = buildBoundaryMesh(*field, particles, samples, ctx);
+      if (useLdt) {
+        // The particles as the system left them (junction particles carry their label sets).
+        std::vector<Particle> plist = ps.particles;
+        if (plist.empty()) {
+          for (size_t j = 0; j < junctions.particles.size(); ++j) {
+            Particle p;
+            p.local = junctions.particles[j].local;
+            p.a = junctions.particles[j].labels[0];
+            p.b = junctions.particles[j].labels[1];
+            p.junction = int32_t(j);
+            plist.push_back(p);
+          }
+          for (uint32_t i : samples.selected) {
+            Particle p;
+            p.local = samples.all[i].local;
+            p.a = samples.all[i].a;
+            p.b = samples.all[i].b;
+            plist.push_back(p);
+          }
+        }
+        ldt = buildLocalDelaunaySurface(*field, plist, junctions, *surface.delaunay, ctx);
+        // Replace the restricted-Delaunay triangles by the LDT ones (used vertices only).
+        std::vector<int32_t> id(plist.size(), -1);
+        surface.points.clear();
+        surface.triangles.clear();
+        surface.trianglePairs = ldt.trianglePairs;
+        for (const auto& t : ldt.triangles) {
+          std::array<int32_t, 3> tri;
+          for (int k = 0; k < 3; ++k) {
+            int32_t& v = id[size_t(t[k])];
+            if (v < 0) {
+              v = int32_t(surface.points.size());
+              surface.points.push_back(vol.localToCanonical(plist[size_t(t[k])].local));
+            }
+            tri[k] = v;
+          }
+          surface.triangles.push_back(tri);
+        }
+        if (ldt.openEdgesAfter > 0)
+          ctx.warn("The local Delaunay surface still has " + std::to_string(ldt.openEdgesAfter) +
+                   " open edges after hole filling; TetGen may fall back.");
+      }
       for (int m : surface.repairedLabels)
         ctx.warn("Label " + std::to_string(vol.userLabel[m]) +
                  " was too small for the element size; extra points were inserted to keep it.");
@@ -208,6 +253,12 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
                      {"surface_vertices", double(surface.points.size())},
                      {"surface_triangles", double(surface.triangles.size())},
                      {"tetgen_regions", double(vm.regions)},
+                     {"surface_open_edges", double(useLdt ? ldt.openEdgesAfter
+                                                            : countOpenEdges(surface.triangles,
+                                                                             surface.trianglePairs))},
+                     {"ldt_open_edges_before_filling", double(ldt.openEdgesBefore)},
+                     {"ldt_holes_filled", double(ldt.holesFilled)},
+                     {"ldt_non_manifold_removed", double(ldt.nonManifoldRemoved)},
                      {"vertices", double(mesh.points.size())},
                      {"tets", double(mesh.tets.size())}};
     result.warnings = ctx.warnings();
@@ -233,6 +284,7 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
     json counts = json::object();
     for (const auto& [k, v] : result.counts) counts[k] = v;
     report["counts"] = counts;
+    report["surface_mesher"] = params.surfaceMesher;
     report["volume_mesh"] = {{"method", vm.method}, {"tetgen_switches", vm.switches},
                              {"dropped_cavity_tets", vm.droppedCavityTets}};
     report["quality"] = json::parse(qualityReportToJson(result.quality, true));

@@ -44,6 +44,23 @@ std::vector<size_t> LabelledDelaunay::tetsPerLabel() const {
   return n;
 }
 
+void LabelledDelaunay::adjacency(size_t n, std::vector<uint32_t>& offsets,
+                                 std::vector<uint32_t>& neighbours) const {
+  const Delaunay& dt = impl->dt;
+  std::vector<std::vector<uint32_t>> adj(n);
+  for (auto e = dt.finite_edges_begin(); e != dt.finite_edges_end(); ++e) {
+    const int a = e->first->vertex(e->second)->info(), b = e->first->vertex(e->third)->info();
+    if (a < 0 || b < 0 || size_t(a) >= n || size_t(b) >= n) continue;
+    adj[size_t(a)].push_back(uint32_t(b));
+    adj[size_t(b)].push_back(uint32_t(a));
+  }
+  offsets.assign(n + 1, 0);
+  for (size_t i = 0; i < n; ++i) offsets[i + 1] = offsets[i] + uint32_t(adj[i].size());
+  neighbours.clear();
+  neighbours.reserve(offsets[n]);
+  for (auto& a : adj) neighbours.insert(neighbours.end(), a.begin(), a.end());
+}
+
 void LabelledDelaunay::exportTets(std::vector<Vec3>& points,
                                   std::vector<std::array<int32_t, 4>>& tets,
                                   std::vector<int32_t>& labels) const {
@@ -154,7 +171,11 @@ BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector
       if (centres.size() > 4000) centres.resize(4000);
       extra.insert(extra.end(), centres.begin(), centres.end());
     }
-    for (const auto& p : extra) dt.insert(p);
+    for (const auto& p : extra) {
+      const size_t before = dt.number_of_vertices();
+      auto v = dt.insert(p);
+      if (dt.number_of_vertices() > before) v->info() = -1;  // a repair point, not a particle
+    }
     labelAll(field, dt, ctx);
   }
   ctx.progress(0.8);

@@ -32,6 +32,9 @@ class LabelledDelaunay {
   int labelAt(const Vec3& canonical) const;
   /// Number of tets per compact label.
   std::vector<size_t> tetsPerLabel() const;
+  /// For every input point (by its index in `points` of buildBoundaryMesh), the indices of the
+  /// input points joined to it by a Delaunay edge (CSR: offsets has n+1 entries).
+  void adjacency(size_t n, std::vector<uint32_t>& offsets, std::vector<uint32_t>& neighbours) const;
   /// The labelled tets themselves (label != 0), canonical coordinates, compact labels.
   void exportTets(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
                   std::vector<int32_t>& labels) const;
