@@ -3,7 +3,8 @@
 #include <femesher/RunContext.h>
 #include <femesher/stages/LocalDelaunay.h>
 
-#include <CGAL/Delaunay_triangulation_2.h>
+#include <CGAL/Constrained_Delaunay_triangulation_2.h>
+#include <CGAL/Constrained_triangulation_face_base_2.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
 
@@ -18,8 +19,9 @@ namespace {
 
 using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using Vb2 = CGAL::Triangulation_vertex_base_with_info_2<int32_t, K>;
-using Tds2 = CGAL::Triangulation_data_structure_2<Vb2>;
-using Delaunay2 = CGAL::Delaunay_triangulation_2<K, Tds2>;
+using Fb2 = CGAL::Constrained_triangulation_face_base_2<K>;
+using Tds2 = CGAL::Triangulation_data_structure_2<Vb2, Fb2>;
+using Delaunay2 = CGAL::Constrained_Delaunay_triangulation_2<K, Tds2, CGAL::Exact_predicates_tag>;
 
 double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
@@ -155,6 +157,64 @@ LocalDelaunayResult buildLocalDelaunaySurface(const IndicatorField& field,
     return g;
   };
 
+  // Triple-line edges: each line particle is joined to its nearest neighbour ahead and behind
+  // along the line (particles of the same triple, or quadruple points holding it). These edges
+  // are constraints of every star, so all patches meeting at a line share its edges.
+  std::vector<std::vector<uint32_t>> lineNb(n);
+  {
+    std::vector<uint32_t> jIdx;
+    for (size_t i = 0; i < n; ++i)
+      if (P[i].junction >= 0) jIdx.push_back(uint32_t(i));
+    double hMax = 0;
+    for (uint32_t i : jIdx)
+      for (uint32_t k = off[i]; k < off[i + 1]; ++k) {
+        const Vec3 d = sub(pos[adj[k]], pos[i]);
+        hMax = std::max(hMax, std::sqrt(dot(d, d)));
+      }
+    for (uint32_t i : jIdx) {
+      const JunctionPoint& ji = junctions.particles[size_t(P[i].junction)];
+      if (ji.count != 3) continue;
+      const uint16_t* l = ji.labels.data();
+      const Vec3 g1 = [&] {
+        const Vec3 a = field.gradient(l[0], P[i].local), b = field.gradient(l[1], P[i].local);
+        return Vec3{(a[0] - b[0]) / vol.spacing[0], (a[1] - b[1]) / vol.spacing[1], (a[2] - b[2]) / vol.spacing[2]};
+      }();
+      const Vec3 g2 = [&] {
+        const Vec3 a = field.gradient(l[0], P[i].local), b = field.gradient(l[2], P[i].local);
+        return Vec3{(a[0] - b[0]) / vol.spacing[0], (a[1] - b[1]) / vol.spacing[1], (a[2] - b[2]) / vol.spacing[2]};
+      }();
+      const Vec3 t = cross(g1, g2);
+      double ahead = 1e300, behind = 1e300;
+      int32_t ja = -1, jb = -1;
+      // Candidates: Delaunay 2-ring (the next line particle is at most two edges away).
+      auto consider = [&](uint32_t q) {
+        if (q == i || P[q].junction < 0) return;
+        const JunctionPoint& jq = junctions.particles[size_t(P[q].junction)];
+        if (!(jq.contains(l[0], l[1]) && jq.contains(l[0], l[2]))) return;
+        const Vec3 d = sub(pos[q], pos[i]);
+        const double r = std::sqrt(dot(d, d));
+        if (dot(d, t) > 0 ? r < ahead : r < behind) {
+          if (dot(d, t) > 0) { ahead = r; ja = int32_t(q); }
+          else { behind = r; jb = int32_t(q); }
+        }
+      };
+      for (uint32_t k = off[i]; k < off[i + 1]; ++k) {
+        consider(adj[k]);
+        for (uint32_t k2 = off[adj[k]]; k2 < off[adj[k] + 1]; ++k2) consider(adj[k2]);
+      }
+      for (int32_t q : {ja, jb})
+        if (q >= 0) {
+          lineNb[i].push_back(uint32_t(q));
+          lineNb[size_t(q)].push_back(i);
+        }
+    }
+    for (auto& v : lineNb) {
+      std::sort(v.begin(), v.end());
+      v.erase(std::unique(v.begin(), v.end()), v.end());
+    }
+    (void)hMax;
+  }
+
   // Stars, in parallel over particles; votes merged per chunk.
   const int threads = resolveThreads(ctx.threads());
   const int chunks = threads * 4;
@@ -190,11 +250,25 @@ LocalDelaunayResult buildLocalDelaunaySurface(const IndicatorField& field,
         }
         if (pts.size() < 3) continue;
         Delaunay2 dt;
-        dt.insert(pts.begin(), pts.end());
-        Delaunay2::Vertex_handle vp;
-        for (auto v = dt.finite_vertices_begin(); v != dt.finite_vertices_end(); ++v)
-          if (v->info() == int32_t(i)) vp = v;
-        if (vp == Delaunay2::Vertex_handle()) continue;
+        std::unordered_map<int32_t, Delaunay2::Vertex_handle> handle;
+        for (const auto& [pt, id] : pts) {
+          auto v = dt.insert(pt);
+          v->info() = id;
+          handle[id] = v;
+        }
+        const auto [pa, pb] = patchPairs[patch];
+        for (const auto& [pt, id] : pts)
+          for (uint32_t q : lineNb[size_t(id)]) {
+            if (int32_t(q) < id) continue;
+            auto it = handle.find(int32_t(q));
+            if (it == handle.end()) continue;
+            const JunctionPoint& jq = junctions.particles[size_t(P[q].junction)];
+            if (!jq.contains(pa, pb)) continue;
+            if (handle[id] != it->second) dt.insert_constraint(handle[id], it->second);
+          }
+        auto hp = handle.find(int32_t(i));
+        if (hp == handle.end()) continue;
+        Delaunay2::Vertex_handle vp = hp->second;
         auto fc = dt.incident_faces(vp), done = fc;
         if (fc == nullptr) continue;
         do {
