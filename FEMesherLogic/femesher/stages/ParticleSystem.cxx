@@ -318,7 +318,9 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
         if (f <= 0) f = 0.25;
         for (int attempt = 0; attempt < 3; ++attempt) {
           double step = f * gl / stiffness;
-          const double cap = maxStepFactor * h[i];
+          // At most a quarter of the distance to the nearest neighbour: two particles moving
+          // towards each other in the same (Jacobi) iteration can then never collide.
+          const double cap = std::min(maxStepFactor * h[i], std::max(0.25 * nearest[i], 0.05 * h[i]));
           const double scale = step > cap ? cap / step : 1.0;
           const double mul = f * scale / stiffness;
           const Vec3 c{pos[i][0] - mul * g[0], pos[i][1] - mul * g[1], pos[i][2] - mul * g[2]};
@@ -328,6 +330,14 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
             continue;
           }
           const Vec3 cp = S.canonical(l);
+          // The projection must land near the tangent step (not on another fold of the
+          // interface, where the neighbour list would not apply).
+          const Vec3 dp{cp[0] - c[0], cp[1] - c[1], cp[2] - c[2]};
+          const double intended = std::min(step, cap);
+          if (dot(dp, dp) > std::pow(intended + 0.05 * h[i], 2)) {
+            f = std::max(f * 0.5, 0.05);
+            continue;
+          }
           if (energyAt(cp, nb) < e0) {
             next[i] = l;
             const Vec3 d{cp[0] - pos[i][0], cp[1] - pos[i][1], cp[2] - pos[i][2]};
@@ -359,6 +369,13 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
       p95 = m[q];
     }
     res.finalEnergy = total;
+    double minNearest = 1e300, maxEnergy = 0;
+    for (size_t i = nFixed; i < n; ++i) {
+      minNearest = std::min(minNearest, nearest[i] / h[i]);
+      maxEnergy = std::max(maxEnergy, energy[i]);
+    }
+    ctx.debug("ParticleSystem iteration " + std::to_string(iteration) + ": min nearest/h " +
+              std::to_string(minNearest) + ", max particle energy " + std::to_string(maxEnergy));
     ctx.debug("ParticleSystem iteration " + std::to_string(iteration) + ": " + std::to_string(n) +
               " particles, energy " + std::to_string(total) + ", moves/h p95 " +
               std::to_string(p95) + " max " + std::to_string(maxMove));
@@ -369,7 +386,11 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
     // Population control (sequential, deterministic).
     const bool populationStep = (iteration + 1) % params.populationInterval == 0 &&
                                 iteration + 1 < params.maxIterations;
-    if (populationStep || std::any_of(lost.begin(), lost.end(), [](char c) { return c != 0; })) {
+    // Near-duplicates (closer than a tenth of the spacing) are thinned at every iteration.
+    bool duplicates = false;
+    for (size_t i = nFixed; i < n && !duplicates; ++i) duplicates = nearest[i] < 0.1 * h[i];
+    if (populationStep || duplicates ||
+        std::any_of(lost.begin(), lost.end(), [](char c) { return c != 0; })) {
       std::vector<char> remove(n, 0);
       std::vector<Particle> added;
       for (size_t i = nFixed; i < n; ++i) {
@@ -378,14 +399,15 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
           ++res.lost;
           continue;
         }
-        if (!populationStep) continue;
         const int32_t j = nearestId[i];
-        if (j >= 0 && nearest[i] < params.minSpacingFactor * h[i] &&
+        const double minSpacing = populationStep ? params.minSpacingFactor : 0.1;
+        if (j >= 0 && nearest[i] < minSpacing * h[i] &&
             (P[size_t(j)].junction >= 0 || size_t(j) < i) && !remove[size_t(j)]) {
           remove[i] = 1;
           ++res.removed;
           continue;
         }
+        if (!populationStep) continue;
         const double ideal = 6.0 * kernel(h[i], k * h[i]);
         if (energy[i] < params.splitEnergyFactor * ideal) {
           // split: new particle half a spacing away in a seeded tangent direction
@@ -403,9 +425,24 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
                               c[1] + 0.5 * h[i] * (std::cos(ang) * t1[1] + std::sin(ang) * t2[1]),
                               c[2] + 0.5 * h[i] * (std::cos(ang) * t1[2] + std::sin(ang) * t2[2])});
           if (S.project(P[i].a, P[i].b, l)) {
-            Particle q = P[i];
-            q.local = l;
-            added.push_back(q);
+            // Keep the child only where there is room (existing and new particles).
+            const Vec3 cc = S.canonical(l);
+            const double room = params.minSpacingFactor * h[i];
+            bool free = true;
+            grid.forEachNear(cc, room, [&](uint32_t j) {
+              const Vec3 d{cc[0] - pos[j][0], cc[1] - pos[j][1], cc[2] - pos[j][2]};
+              if (dot(d, d) < room * room) free = false;
+            });
+            for (const auto& q : added) {
+              const Vec3 cq = S.canonical(q.local);
+              const Vec3 d{cc[0] - cq[0], cc[1] - cq[1], cc[2] - cq[2]};
+              if (dot(d, d) < room * room) free = false;
+            }
+            if (free) {
+              Particle q = P[i];
+              q.local = l;
+              added.push_back(q);
+            }
           }
         }
       }
