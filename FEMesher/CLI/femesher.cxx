@@ -337,6 +337,7 @@ void addMeshOptions(CLI::App* cmd, MeshOptions& o, bool positionalOutput) {
   cmd->add_flag("-q,--quiet", o.quiet, "Only warnings and errors");
   for (const auto& d : parameterDescriptors()) {
     const std::string key = d.key;
+    if (key == "threads" || key == "seed") continue;  // dedicated options above
     cmd->add_option_function<std::string>(
            "--" + flagName(d.key), [&o, key](const std::string& v) { o.direct[key] = v; },
            d.help + (d.unit.empty() ? "" : " [" + d.unit + "]"))

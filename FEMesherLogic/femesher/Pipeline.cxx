@@ -43,6 +43,20 @@ class StageScope {
   Clock::time_point start_;
 };
 
+/// Order-sensitive checksum of the interface surface handed to TetGen (determinism checks).
+double surfaceChecksum(const BoundarySurface& s) {
+  uint64_t h = 1469598103934665603ull;
+  auto mix = [&](uint64_t x) {
+    h ^= x;
+    h *= 1099511628211ull;
+  };
+  for (const auto& p : s.points)
+    for (double x : p) mix(uint64_t(std::llround(x * 1e6)));
+  for (const auto& t : s.triangles)
+    for (int32_t v : t) mix(uint64_t(uint32_t(v)));
+  return double(h % 1000000007ull);
+}
+
 double resolvedEdgeLength(const LabelVolume& in, const MeshingParameters& p) {
   if (p.targetEdgeLength > 0) return p.targetEdgeLength;
   const double mean = (in.spacing[0] + in.spacing[1] + in.spacing[2]) / 3.0;
@@ -187,6 +201,10 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
       for (int m : surface.repairedLabels)
         ctx.warn("Label " + std::to_string(vol.userLabel[m]) +
                  " was too small for the element size; extra points were inserted to keep it.");
+      for (int m : surface.forcedLabels)
+        ctx.warn("Label " + std::to_string(vol.userLabel[m]) +
+                 " is far below the element size; the tets holding its voxels carry it (its shape "
+                 "is not resolved: lower target_edge_length to resolve it).");
       st.done();
     }
     // 5. Volume mesh.
@@ -253,6 +271,7 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
                      {"surface_vertices", double(surface.points.size())},
                      {"surface_triangles", double(surface.triangles.size())},
                      {"tetgen_regions", double(vm.regions)},
+                     {"surface_checksum", surfaceChecksum(surface)},
                      {"surface_open_edges", double(useLdt ? ldt.openEdgesAfter
                                                             : countOpenEdges(surface.triangles,
                                                                              surface.trianglePairs))},

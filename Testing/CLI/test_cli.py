@@ -42,13 +42,14 @@ def run(*args, timeout=900):
 
 
 def write_nrrd(path, dims, values, type_name="unsigned char", fmt="B", dimension=3):
-    header = ("NRRD0004\ntype: %s\ndimension: %d\nsizes: %s\nspace directions: %s\n"
-              "encoding: raw\nendian: little\nspace: left-posterior-superior\n"
-              "space origin: (%s)\n\n") % (
-        type_name, dimension, " ".join(map(str, dims)),
-        " ".join("(" + ",".join("1" if i == j else "0" for j in range(dimension)) + ")"
-                 for i in range(dimension)),
-        ",".join("0" for _ in range(dimension)))
+    header = "NRRD0004\ntype: %s\ndimension: %d\nsizes: %s\n" % (
+        type_name, dimension, " ".join(map(str, dims)))
+    if dimension == 3:
+        header += ("space: left-posterior-superior\n"
+                   "space directions: (1,0,0) (0,1,0) (0,0,1)\nspace origin: (0,0,0)\n")
+    else:
+        header += "spacings: %s\n" % " ".join("1" for _ in range(dimension))
+    header += "encoding: raw\nendian: little\n\n"
     with open(path, "wb") as f:
         f.write(header.encode())
         f.write(struct.pack("<%d%s" % (len(values), fmt), *values))

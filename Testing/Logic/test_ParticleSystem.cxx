@@ -61,7 +61,7 @@ LabelVolume fourAtAPoint() {
   });
 }
 
-struct Run {
+struct StageRun {
   PreprocessedVolume vol;
   std::unique_ptr<IndicatorField> field;
   SurfaceSamples samples;
@@ -70,13 +70,14 @@ struct Run {
   BoundarySurface surface;
 };
 
-Run runStages(const LabelVolume& v, double h, const SizingFunction& sizing) {
-  Run r;
+StageRun runStages(const LabelVolume& v, double h, const SizingFunction& sizing) {
+  StageRun r;
   RunContext ctx;
   r.vol = preprocessLabels(v, {}, ctx);
   r.field = std::make_unique<IndicatorField>(computeIndicatorFunctions(r.vol, {}, ctx));
   SurfaceSamplingParameters sp;
   sp.targetEdgeLength = h;
+  sp.sizing = sizing;
   r.samples = sampleInterfaces(*r.field, v, sp, ctx);
   r.junctions = findJunctions(*r.field, sizing, {}, ctx);
   r.ps = runParticleSystem(*r.field, r.samples, r.junctions, sizing, v, {}, ctx);
@@ -88,7 +89,7 @@ Run runStages(const LabelVolume& v, double h, const SizingFunction& sizing) {
 
 /// Fraction of junction particles that are vertices of an edge shared by triangles of >= 3
 /// materials.
-double junctionsOnTripleEdges(const Run& r) {
+double junctionsOnTripleEdges(const StageRun& r) {
   std::map<Vec3, int> vid;
   for (size_t i = 0; i < r.surface.points.size(); ++i) vid[r.surface.points[i]] = int(i);
   std::map<std::pair<int, int>, std::set<int>> edgeMaterials;
@@ -119,7 +120,7 @@ double junctionsOnTripleEdges(const Run& r) {
 TEST(Junctions, ThreeSlabsGiveOneTripleLineAlongTheAxis) {
   const LabelVolume v = threeSlabs();
   const SizingFunction h = [](const Vec3&) { return 2.0; };
-  Run r = runStages(v, 2.0, h);
+  StageRun r = runStages(v, 2.0, h);
   std::set<std::array<uint16_t, 4>> lines;
   size_t onAxis = 0, interior = 0;
   for (const auto& j : r.junctions.particles) {
@@ -142,7 +143,7 @@ TEST(Junctions, ThreeSlabsGiveOneTripleLineAlongTheAxis) {
 TEST(Junctions, FourMaterialsMeetAtAQuadruplePoint) {
   const LabelVolume v = fourAtAPoint();
   const SizingFunction h = [](const Vec3&) { return 2.0; };
-  Run r = runStages(v, 2.0, h);
+  StageRun r = runStages(v, 2.0, h);
   size_t quads = 0;
   for (const auto& j : r.junctions.particles)
     if (j.count == 4 && j.labels[0] == 1) {
@@ -160,7 +161,7 @@ TEST(ParticleSystem, SpacingFollowsAUniformSizingField) {
   const LabelVolume v = twoSpheres();
   for (double h : {1.5, 3.0}) {
     const SizingFunction s = [h](const Vec3&) { return h; };
-    Run r = runStages(v, h, s);
+    StageRun r = runStages(v, h, s);
     // Stated tolerance: mean nearest-neighbour distance within [0.7, 1.2] x h.
     EXPECT_GT(r.ps.meanSpacingRatio, 0.7) << "h = " << h;
     EXPECT_LT(r.ps.meanSpacingRatio, 1.2) << "h = " << h;
@@ -172,7 +173,7 @@ TEST(ParticleSystem, SpacingFollowsAGradedSizingField) {
   const LabelVolume v = twoSpheres();
   // Fine on the left ball (x < centre), coarse on the right.
   const SizingFunction s = [](const Vec3& c) { return c[0] < 17.5 ? 1.5 : 3.0; };
-  Run r = runStages(v, 1.5, s);
+  StageRun r = runStages(v, 1.5, s);
   EXPECT_GT(r.ps.meanSpacingRatio, 0.7);
   EXPECT_LT(r.ps.meanSpacingRatio, 1.2);
   size_t left = 0, right = 0;
@@ -188,7 +189,7 @@ TEST(ParticleSystem, SpacingFollowsAGradedSizingField) {
 TEST(ParticleSystem, ParticlesStayOnTheirInterface) {
   const LabelVolume v = twoSpheres();
   const SizingFunction s = [](const Vec3&) { return 2.0; };
-  Run r = runStages(v, 2.0, s);
+  StageRun r = runStages(v, 2.0, s);
   size_t off = 0;
   for (const auto& p : r.ps.particles) {
     if (p.junction >= 0) continue;
@@ -201,16 +202,25 @@ TEST(ParticleSystem, ParticlesStayOnTheirInterface) {
 TEST(ParticleSystem, DeterministicForAGivenSeed) {
   const LabelVolume v = threeSlabs();
   const SizingFunction s = [](const Vec3&) { return 2.0; };
-  Run a = runStages(v, 2.0, s), b = runStages(v, 2.0, s);
+  StageRun a = runStages(v, 2.0, s), b = runStages(v, 2.0, s);
   ASSERT_EQ(a.ps.particles.size(), b.ps.particles.size());
   for (size_t i = 0; i < a.ps.particles.size(); ++i)
     EXPECT_EQ(a.ps.particles[i].local, b.ps.particles[i].local);
+  ASSERT_EQ(a.surface.points.size(), b.surface.points.size());
+  ASSERT_EQ(a.surface.delaunayTets, b.surface.delaunayTets);
+  for (size_t i = 0; i < a.surface.points.size(); ++i)
+    if (a.surface.points[i] != b.surface.points[i]) {
+      ADD_FAILURE() << "first difference at point " << i;
+      break;
+    }
+  EXPECT_EQ(a.surface.points, b.surface.points);
+  EXPECT_EQ(a.surface.triangles, b.surface.triangles);
 }
 
 TEST(BoundaryMesh, RestrictedDelaunaySurfaceIsWatertight) {
   for (const LabelVolume& v : {twoSpheres(), threeSlabs(), fourAtAPoint()}) {
     const SizingFunction s = [](const Vec3&) { return 2.0; };
-    Run r = runStages(v, 2.0, s);
+    StageRun r = runStages(v, 2.0, s);
     EXPECT_EQ(countOpenEdges(r.surface.triangles, r.surface.trianglePairs), 0u);
   }
 }
@@ -218,7 +228,7 @@ TEST(BoundaryMesh, RestrictedDelaunaySurfaceIsWatertight) {
 TEST(LocalDelaunay, ReportsHolesAndMeshesEveryPatch) {
   const LabelVolume v = threeSlabs();
   const SizingFunction s = [](const Vec3&) { return 2.0; };
-  Run r = runStages(v, 2.0, s);
+  StageRun r = runStages(v, 2.0, s);
   RunContext ctx;
   const LocalDelaunayResult ldt =
       buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, *r.surface.delaunay, ctx);
@@ -241,4 +251,25 @@ TEST(MeshingPipeline, LdtSurfaceMesherRuns) {
   expectConformal(r->mesh);
   EXPECT_EQ(meshLabels(r->mesh), (std::set<int32_t>{1, 2}));
   EXPECT_NE(r->reportJson.find("ldt_holes_filled"), std::string::npos);
+}
+
+TEST(BoundaryMesh, SameInputSameSurface) {
+  const LabelVolume v = threeSlabs();
+  const SizingFunction s = [](const Vec3&) { return 2.0; };
+  StageRun a = runStages(v, 2.0, s);
+  std::vector<Vec3> pts;
+  for (const auto& p : a.ps.particles) pts.push_back(p.local);
+  RunContext ctx;
+  const BoundarySurface s1 = buildBoundaryMesh(*a.field, pts, a.samples, ctx);
+  const BoundarySurface s2 = buildBoundaryMesh(*a.field, pts, a.samples, ctx);
+  EXPECT_EQ(s1.points, s2.points);
+  EXPECT_EQ(s1.triangles, s2.triangles);
+  RunContext c2;
+  const IndicatorField f2 = computeIndicatorFunctions(a.vol, {}, c2);
+  size_t diff = 0;
+  for (int m = 0; m < f2.labelCount(); ++m)
+    for (int k = 0; k < a.vol.dims[2]; ++k)
+      for (int j = 0; j < a.vol.dims[1]; ++j)
+        for (int i = 0; i < a.vol.dims[0]; ++i) diff += f2.value(m, i, j, k) != a.field->value(m, i, j, k);
+  EXPECT_EQ(diff, 0u);
 }

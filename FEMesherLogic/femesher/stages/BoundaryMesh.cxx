@@ -137,6 +137,9 @@ BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector
     throw Error(ErrorCode::MeshingFailed,
                 "Too few interface samples (" + std::to_string(pts.size()) +
                     ") to build a mesh: lower target_edge_length.");
+  // CGAL's spatial sort shuffles with a global random generator; reseed it so that the same
+  // input always gives the same triangulation (cospherical samples are common on a grid).
+  CGAL::get_default_random() = CGAL::Random(12345);
   dt.insert(pts.begin(), pts.end());
   ctx.progress(0.4);
   labelAll(field, dt, ctx);
@@ -178,28 +181,80 @@ BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector
     }
     labelAll(field, dt, ctx);
   }
+  // Last resort for a label that still has no tet (a feature far below the sampling, e.g. one
+  // voxel): the Delaunay tets that contain its voxel centres take its label.
+  {
+    const auto counts = ld->tetsPerLabel();
+    for (int m = 1; m <= vol.materialCount(); ++m) {
+      if (counts[m] != 0 || vol.voxelCounts[m] == 0) continue;
+      size_t forced = 0;
+      for (int k = 0; k < vol.dims[2] && forced < 64; ++k)
+        for (int j = 0; j < vol.dims[1] && forced < 64; ++j)
+          for (int i = 0; i < vol.dims[0] && forced < 64; ++i)
+            if (vol.at(i, j, k) == m) {
+              const Vec3 c = vol.localToCanonical({double(i), double(j), double(k)});
+              auto cell = dt.locate(Point(c[0], c[1], c[2]));
+              if (!dt.is_infinite(cell)) {
+                cell->info() = m;
+                ++forced;
+              }
+            }
+      if (forced) out.forcedLabels.push_back(m);
+    }
+  }
   ctx.progress(0.8);
 
-  // Interface triangles.
-  std::unordered_map<const void*, int32_t> ids;
+  // Interface triangles. CGAL reports each facet from the cell with the smaller address, so the
+  // raw order depends on the heap: orient every triangle from its lower-label cell and sort
+  // vertices (by position) and triangles, so the same input always gives the same surface.
+  struct RawTri {
+    std::array<Delaunay::Vertex_handle, 3> v;
+    uint16_t a, b;
+  };
+  std::vector<RawTri> raw;
   for (auto f = dt.finite_facets_begin(); f != dt.finite_facets_end(); ++f) {
-    const auto c = f->first;
-    const int i = f->second;
-    const auto n = c->neighbor(i);
-    const int la = c->info(), lb = n->info();
-    if (la == lb) continue;
-    std::array<int32_t, 3> tri;
-    for (int k = 0; k < 3; ++k) {
-      auto v = c->vertex((i + 1 + k) % 4);
-      auto it = ids.find(&*v);
-      if (it == ids.end()) {
-        it = ids.emplace(&*v, int32_t(out.points.size())).first;
-        out.points.push_back({v->point().x(), v->point().y(), v->point().z()});
-      }
-      tri[k] = it->second;
+    auto c = f->first;
+    int i = f->second;
+    auto n = c->neighbor(i);
+    if (c->info() == n->info()) continue;
+    if (c->info() > n->info()) {  // orient from the lower label's cell
+      const int j = n->index(c);
+      c = n;
+      i = j;
     }
-    out.triangles.push_back(tri);
-    out.trianglePairs.emplace_back(uint16_t(std::min(la, lb)), uint16_t(std::max(la, lb)));
+    RawTri t;
+    // Outward orientation of facet i of cell c.
+    t.v = {c->vertex((i + 1) % 4), c->vertex((i + 2) % 4), c->vertex((i + 3) % 4)};
+    if (i % 2 == 1) std::swap(t.v[1], t.v[2]);
+    t.a = uint16_t(c->info());
+    t.b = uint16_t(c->neighbor(i)->info());
+    raw.push_back(t);
+  }
+  std::vector<Delaunay::Vertex_handle> verts;
+  for (const auto& t : raw) verts.insert(verts.end(), t.v.begin(), t.v.end());
+  auto lessPoint = [](Delaunay::Vertex_handle x, Delaunay::Vertex_handle y) {
+    const Point &p = x->point(), &q = y->point();
+    if (p.x() != q.x()) return p.x() < q.x();
+    if (p.y() != q.y()) return p.y() < q.y();
+    return p.z() < q.z();
+  };
+  std::sort(verts.begin(), verts.end(), lessPoint);
+  verts.erase(std::unique(verts.begin(), verts.end()), verts.end());
+  std::unordered_map<const void*, int32_t> ids;
+  for (auto v : verts) {
+    ids.emplace(&*v, int32_t(out.points.size()));
+    out.points.push_back({v->point().x(), v->point().y(), v->point().z()});
+  }
+  std::vector<std::pair<std::array<int32_t, 5>, size_t>> order;  // (a, b, sorted ids), index
+  for (size_t k = 0; k < raw.size(); ++k) {
+    std::array<int32_t, 3> s{ids[&*raw[k].v[0]], ids[&*raw[k].v[1]], ids[&*raw[k].v[2]]};
+    std::sort(s.begin(), s.end());
+    order.push_back({{raw[k].a, raw[k].b, s[0], s[1], s[2]}, k});
+  }
+  std::sort(order.begin(), order.end());
+  for (const auto& [key, k] : order) {
+    out.triangles.push_back({ids[&*raw[k].v[0]], ids[&*raw[k].v[1]], ids[&*raw[k].v[2]]});
+    out.trianglePairs.emplace_back(raw[k].a, raw[k].b);
   }
   out.delaunayVertices = dt.number_of_vertices();
   out.delaunayTets = dt.number_of_finite_cells();

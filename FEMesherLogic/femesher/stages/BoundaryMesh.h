@@ -9,7 +9,8 @@
 /// faces of one triangulation): the restricted Delaunay surface of the samples.
 ///
 /// Repair: a kept label that no tet carries (too small for the sampling) gets all its dense
-/// interface samples and voxel centres inserted, and the labelling is redone (up to 3 rounds).
+/// interface samples and voxel centres inserted, and the labelling is redone (up to 3 rounds);
+/// if it still has no tet, the tets containing its voxel centres take its label (reported).
 /// All positions are in the canonical frame (mm).
 
 #include <femesher/Types.h>
@@ -49,6 +50,7 @@ struct BoundarySurface {
   std::shared_ptr<LabelledDelaunay> delaunay;
   size_t delaunayVertices = 0, delaunayTets = 0;
   std::vector<int> repairedLabels;  ///< compact labels that needed extra points
+  std::vector<int> forcedLabels;    ///< compact labels given to the tets holding their voxels
 };
 
 /// `points`: the particles (local voxel index positions). `dense`: every interface vertex, used

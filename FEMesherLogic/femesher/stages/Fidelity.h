@@ -33,7 +33,9 @@ struct MaterialFidelity {
 };
 
 struct DistanceStats {
-  size_t samples = 0;
+  size_t samples = 0;     ///< distances evaluated
+  size_t population = 0;  ///< candidate samples before subsampling
+  bool sampled = false;   ///< true when a deterministic stride subsample was used
   double mean = 0, median = 0, p95 = 0, p99 = 0, max = 0;  ///< in voxels
 };
 

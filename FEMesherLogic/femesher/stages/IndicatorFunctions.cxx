@@ -194,7 +194,9 @@ IndicatorField computeIndicatorFunctions(const PreprocessedVolume& vol,
   const float bandMm = float(params.band * smax);
   field.far_ = -bandMm;
   const float offset = float(0.5 * smin);
-  const float eps = float(0.02 * smin);
+  // Every voxel centre keeps |f| >= eps with the right sign: the smoothed surface never comes
+  // closer than about a fifth of a voxel to a centre, so one-voxel features keep a volume.
+  const float eps = float(0.2 * smin);
   const int threads = ctx.threads();
 
   // Bounding boxes of every label.

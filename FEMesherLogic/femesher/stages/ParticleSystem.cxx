@@ -409,6 +409,21 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
         }
         if (!populationStep) continue;
         const double ideal = 6.0 * kernel(h[i], k * h[i]);
+        if (energy[i] > params.deleteEnergyFactor * ideal) {
+          // Crowded: remove it unless a neighbour is already being removed in this step.
+          bool neighbourRemoved = false;
+          grid.forEachNear(pos[i], k * h[i], [&](uint32_t j) {
+            if (j != i && remove[j] && P[j].a == P[i].a && P[j].b == P[i].b) {
+              const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
+              if (dot(d, d) < k * k * h[i] * h[i]) neighbourRemoved = true;
+            }
+          });
+          if (!neighbourRemoved) {
+            remove[i] = 1;
+            ++res.removed;
+            continue;
+          }
+        }
         if (energy[i] < params.splitEnergyFactor * ideal) {
           // split: new particle half a spacing away in a seeded tangent direction
           const Vec3& nn = nrm[i];

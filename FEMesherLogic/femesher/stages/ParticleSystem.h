@@ -17,8 +17,10 @@
 ///   retried shorter). Every update reads the previous iteration's positions only, so the result
 ///   does not depend on the number of threads.
 /// - Population: every `populationInterval` iterations a particle with far less than the ideal
-///   (hexagonal) energy splits (new particle at half a spacing in a seeded tangent direction), and
-///   of two particles closer than `minSpacingFactor` x h the one with the higher id is removed.
+///   (hexagonal) energy splits (new particle at half a spacing in a seeded tangent direction, kept
+///   only where there is room), a particle with far more than the ideal energy is removed unless a
+///   neighbour already is, and of two particles closer than `minSpacingFactor` x h the one with
+///   the higher id is removed.
 /// - Convergence (reported): the 95th percentile of the moves is below `tolerance` x h for 3
 ///   iterations in a row and the population did not change in the last population step, or
 ///   `maxIterations` is reached. (The largest move is reported too: a few particles at the rim of
@@ -39,12 +41,13 @@ class RunContext;
 
 struct ParticleSystemParameters {
   int maxIterations = 30;
-  int populationInterval = 10;
+  int populationInterval = 5;
   double kernelScale = 1.5;       ///< interaction radius / target spacing
   double maxStepFactor = 0.3;     ///< largest move per iteration / h
   double tolerance = 0.04;        ///< convergence: 95th percentile of moves / h
   double minSpacingFactor = 0.45; ///< closer pairs are thinned
   double splitEnergyFactor = 0.1; ///< split when energy < factor x ideal energy
+  double deleteEnergyFactor = 1.5; ///< delete when energy > factor x ideal energy (crowded)
   uint64_t seed = 1;
 };
 

@@ -36,8 +36,11 @@ struct MetricSummary {
   double min = 0, max = 0, mean = 0, variance = 0;
   double badThreshold = 0;  ///< the stated threshold
   bool badAbove = true;     ///< bad when value > threshold (else when < threshold)
+  bool badInclusive = false;  ///< bad also when value == threshold (scaled Jacobian: <= 0)
   size_t badCount = 0;
   double badShare = 0;      ///< badCount / tets
+  size_t nonFinite = 0;     ///< values that are +inf (degenerate/inverted tets); excluded from
+                            ///< mean and variance, counted in the last histogram bin and as bad
   Histogram histogram;
 };
 
@@ -66,12 +69,21 @@ struct QualityReport {
   size_t minDihedralBelow5 = 0;             ///< tets with min dihedral < 5 degrees
 };
 
-/// Compute per-tet metrics (multi-threaded). `ctx` may be null.
+/// Compute per-tet metrics (multi-threaded, direct Verdict formulas). `ctx` may be null.
+/// Conventions for bad tets: a tet with signed volume <= 0 (inverted or flat) gets aspect and
+/// radius ratio +inf (Verdict returns DBL_MAX for the aspect ratio of such tets); its dihedral
+/// angles are those of its (unsigned) shape; scaled Jacobian keeps its sign (0 when all edges
+/// vanish). Faces of zero area give a minimum dihedral of 0 and a maximum of 180 degrees.
 TetQuality computeTetQuality(const TetMesh& mesh, RunContext* ctx = nullptr);
 
 /// Summaries, histograms (`bins` bins each) and bad counts.
 QualityReport summarizeQuality(const TetMesh& mesh, const TetQuality& q,
                                const QualityThresholds& thresholds = {}, int bins = 40);
+
+/// Reference implementation through VTK's vtkMeshQuality (Verdict), one vtkTetra per tet, single
+/// threaded and slow; used to cross-check the direct formulas. maxDihedral is not provided by VTK
+/// and is left empty. Inverted tets follow Verdict's conventions (not the ones above).
+TetQuality computeTetQualityVtk(const TetMesh& mesh);
 
 /// Both steps.
 QualityReport computeQuality(const TetMesh& mesh, RunContext* ctx = nullptr,

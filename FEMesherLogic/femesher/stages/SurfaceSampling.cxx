@@ -133,8 +133,17 @@ SurfaceSamples sampleInterfaces(const IndicatorField& field, const LabelVolume& 
   ctx.progress(0.6);
 
   // --- Poisson-disk selection ----------------------------------------------------------------
-  const double h = params.targetEdgeLength;
-  const double r = 0.75 * h, rAny = 0.3 * h;
+  auto sizeAt = [&](const Vec3& c) {
+    return params.sizing ? params.sizing(c) : params.targetEdgeLength;
+  };
+  auto canonical = [&](const SurfaceSample& s) { return vol.localToCanonical(s.local); };
+  std::vector<float> hs(out.all.size());
+  double hMax = 0;
+  for (size_t i = 0; i < out.all.size(); ++i) {
+    hs[i] = float(sizeAt(canonical(out.all[i])));
+    hMax = std::max(hMax, double(hs[i]));
+  }
+  const double r = 0.75 * std::max(hMax, 1e-9);  // grid cell: the largest radius
   std::vector<uint32_t> idx(out.all.size());
   std::iota(idx.begin(), idx.end(), 0u);
   std::sort(idx.begin(), idx.end(), [&](uint32_t a, uint32_t b) {
@@ -143,7 +152,6 @@ SurfaceSamples sampleInterfaces(const IndicatorField& field, const LabelVolume& 
   });
   std::unordered_map<CellKey, std::vector<uint32_t>, CellKeyHash> grid;
   grid.reserve(out.all.size() / 4 + 16);
-  auto canonical = [&](const SurfaceSample& s) { return vol.localToCanonical(s.local); };
   size_t processed = 0;
   for (uint32_t i : idx) {
     if ((++processed & 0xFFFF) == 0) ctx.progress(0.6 + 0.35 * double(processed) / idx.size());
@@ -163,7 +171,9 @@ SurfaceSamples sampleInterfaces(const IndicatorField& field, const LabelVolume& 
             const double dist2 = (c[0] - d[0]) * (c[0] - d[0]) + (c[1] - d[1]) * (c[1] - d[1]) +
                                  (c[2] - d[2]) * (c[2] - d[2]);
             const bool same = s.a == t.a && s.b == t.b;
-            if (dist2 < (same ? r * r : rAny * rAny)) {
+            const double rij = 0.75 * 0.5 * (double(hs[i]) + double(hs[j]));
+            const double lim = same ? rij : 0.4 * rij;
+            if (dist2 < lim * lim) {
               ok = false;
               break;
             }

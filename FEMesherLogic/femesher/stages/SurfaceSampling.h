@@ -9,7 +9,8 @@
 /// where a and b are the two leading materials. The triangles serve as the preview surface.
 ///
 /// Sampling: a Poisson-disk selection of those vertices with minimum distance
-/// 0.75 x target edge length per interface (and 0.3 x between different interfaces), junction
+/// 0.75 x target edge length (or sizing field) per interface (and 0.3 x between different
+/// interfaces), junction
 /// neighbourhoods (cells with 3 or more labels) first, in a seeded order so the result is
 /// deterministic. The particle system (later) replaces this selection.
 
@@ -17,6 +18,7 @@
 #include <femesher/stages/IndicatorFunctions.h>
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -31,7 +33,10 @@ struct SurfaceSample {
 };
 
 struct SurfaceSamplingParameters {
-  double targetEdgeLength = 2.0;  ///< mm (resolved, > 0)
+  double targetEdgeLength = 2.0;  ///< mm (resolved, > 0), used when `sizing` is empty
+  /// Target edge length (mm) at a canonical position; when set, the Poisson-disk radius follows
+  /// it: two samples of one interface keep 0.75 x the mean of their two sizes apart.
+  std::function<double(const Vec3&)> sizing;
   uint64_t seed = 1;
 };
 
