@@ -32,7 +32,7 @@ struct MeshingParameters {
 
   // --- Indicator functions ---------------------------------------------------------------------
   /// Gaussian smoothing of each material's signed distance, in voxels (0 = staircase).
-  double smoothingSigma = 0.8;
+  double smoothingSigma = 0.5;
 
   // --- Surface sampling (first meshing path) -----------------------------------------------------
   /// Target edge length of the interface triangles in mm. 0 = automatic

@@ -57,10 +57,24 @@ double surfaceChecksum(const BoundarySurface& s) {
   return double(h % 1000000007ull);
 }
 
+/// The automatic edge length: edge_length_factor x mean spacing, but never more than a quarter of
+/// the smallest side of the labelled box (tiny volumes still get a few elements across).
 double resolvedEdgeLength(const LabelVolume& in, const MeshingParameters& p) {
   if (p.targetEdgeLength > 0) return p.targetEdgeLength;
   const double mean = (in.spacing[0] + in.spacing[1] + in.spacing[2]) / 3.0;
-  return p.edgeLengthFactor * mean;
+  double h = p.edgeLengthFactor * mean;
+  std::array<int, 3> lo{{in.dims[0], in.dims[1], in.dims[2]}}, hi{{-1, -1, -1}};
+  const bool all = in.hasNoBackground();
+  for (int k = 0; k < in.dims[2]; ++k)
+    for (int j = 0; j < in.dims[1]; ++j)
+      for (int i = 0; i < in.dims[0]; ++i)
+        if (all || in.at(i, j, k) != 0) {
+          lo = {std::min(lo[0], i), std::min(lo[1], j), std::min(lo[2], k)};
+          hi = {std::max(hi[0], i), std::max(hi[1], j), std::max(hi[2], k)};
+        }
+  for (int a = 0; a < 3; ++a)
+    if (hi[a] >= lo[a]) h = std::min(h, 0.25 * (hi[a] - lo[a] + 1) * in.spacing[a]);
+  return h;
 }
 
 json geometryJson(const LabelVolume& in) {

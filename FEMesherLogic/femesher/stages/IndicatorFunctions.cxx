@@ -253,7 +253,10 @@ IndicatorField computeIndicatorFunctions(const PreprocessedVolume& vol,
     }
     std::vector<float>().swap(dIn);
     std::vector<float>().swap(dOut);
-    gaussianBlur(b.f, b.dims, params.sigma, threads);
+    // Small labels are smoothed less (sigma <= a quarter of their smallest extent), so a label of
+    // a few voxels keeps its volume instead of shrinking to blobs around its voxel centres.
+    const int extent = std::min({hi[m][0] - lo[m][0], hi[m][1] - lo[m][1], hi[m][2] - lo[m][2]}) + 1;
+    gaussianBlur(b.f, b.dims, std::min(params.sigma, 0.25 * extent), threads);
     for (size_t p = 0; p < n; ++p)
       b.f[p] = inside[p] ? std::max(b.f[p], eps) : std::min(b.f[p], -eps);
     doneVoxels += double(n);
