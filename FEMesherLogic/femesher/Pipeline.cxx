@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <map>
 #include <set>
 
 namespace femesher {
@@ -59,6 +60,35 @@ double surfaceChecksum(const BoundarySurface& s) {
 
 /// The automatic edge length: edge_length_factor x mean spacing, but never more than a quarter of
 /// the smallest side of the labelled box (tiny volumes still get a few elements across).
+/// Share of junction particles that are vertices of an edge shared by the triangles of three or
+/// more materials (i.e. the triple lines appear as mesh edges there).
+double junctionsOnTripleEdges(const BoundarySurface& s, const PreprocessedVolume& vol,
+                              const std::vector<Vec3>& particlesLocal, size_t junctionCount) {
+  if (junctionCount == 0) return 1.0;
+  std::map<Vec3, int32_t> vid;
+  for (size_t i = 0; i < s.points.size(); ++i) vid.emplace(s.points[i], int32_t(i));
+  std::map<std::pair<int32_t, int32_t>, std::set<int>> edgeMaterials;
+  for (size_t t = 0; t < s.triangles.size(); ++t)
+    for (int e = 0; e < 3; ++e) {
+      int32_t a = s.triangles[t][e], b = s.triangles[t][(e + 1) % 3];
+      if (a > b) std::swap(a, b);
+      auto& m = edgeMaterials[{a, b}];
+      m.insert(s.trianglePairs[t].first);
+      m.insert(s.trianglePairs[t].second);
+    }
+  std::vector<size_t> best(s.points.size(), 0);
+  for (const auto& [e, m] : edgeMaterials) {
+    best[size_t(e.first)] = std::max(best[size_t(e.first)], m.size());
+    best[size_t(e.second)] = std::max(best[size_t(e.second)], m.size());
+  }
+  size_t ok = 0;
+  for (size_t j = 0; j < junctionCount && j < particlesLocal.size(); ++j) {
+    auto it = vid.find(vol.localToCanonical(particlesLocal[j]));
+    if (it != vid.end() && best[size_t(it->second)] >= 3) ++ok;
+  }
+  return double(ok) / double(junctionCount);
+}
+
 double resolvedEdgeLength(const LabelVolume& in, const MeshingParameters& p) {
   if (p.targetEdgeLength > 0) return p.targetEdgeLength;
   const double mean = (in.spacing[0] + in.spacing[1] + in.spacing[2]) / 3.0;
@@ -166,10 +196,12 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
     // 6. Boundary mesh.
     BoundarySurface surface;
     LocalDelaunayResult ldt;
+    double junctionShare = 0;
     const bool useLdt = params.surfaceMesher == "ldt";
     {
       StageScope st(ctx, result.timings, "BoundaryMesh");
       surface = buildBoundaryMesh(*field, particles, samples, ctx);
+      junctionShare = junctionsOnTripleEdges(surface, vol, particles, junctions.particles.size());
       if (useLdt) {
         // The particles as the system left them (junction particles carry their label sets).
         std::vector<Particle> plist = ps.particles;
@@ -286,6 +318,7 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
                      {"surface_triangles", double(surface.triangles.size())},
                      {"tetgen_regions", double(vm.regions)},
                      {"surface_checksum", surfaceChecksum(surface)},
+                     {"junction_particles_on_triple_edges", junctionShare},
                      {"surface_open_edges", double(useLdt ? ldt.openEdgesAfter
                                                             : countOpenEdges(surface.triangles,
                                                                              surface.trianglePairs))},

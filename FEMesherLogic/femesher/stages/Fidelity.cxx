@@ -1,6 +1,28 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
+/// \file Fidelity.cxx
+/// Agreement of a tet mesh with its label map (see Fidelity.h).
+///
+/// Dice: the mesh is rasterised onto the voxel centres in the continuous index frame. A centre
+/// belongs to a tet when all four barycentric coordinates are > tol; a centre on a face of the tet
+/// (|λ_i| <= tol) belongs to it only when the face's outward normal is lexicographically positive
+/// (x first, then y, then z). This is "simulation of simplicity" with the shift p - ε(1, δ, δ²):
+/// in a conformal mesh every centre inside the mesh, on shared faces, edges and vertices
+/// included, is claimed by exactly one tet. Threads own disjoint z-slabs of the volume, so there
+/// are no write races and the result does not depend on the thread count.
+///
+/// Boundary distances work in the canonical frame (mm, spacing ⊙ index), reported in units of the
+/// smallest spacing. Labels boundary = voxel faces between 6-neighbours of different labels, plus
+/// the faces on the border of the volume of non-background voxels (there the mesh ends too).
+///  - mesh -> labels: each unique interface vertex, and each interface triangle's centroid and
+///    edge midpoints, to the nearest boundary square (exact point-to-square distance), found by a
+///    ring search over a per-voxel face mask (exact); samples farther than kMaxRing voxels fall
+///    back to the 16 nearest face centres in a CGAL kd-tree (then exact distance to those faces).
+///  - labels -> mesh: boundary face centres to the nearest interface triangle (CGAL AABB tree).
+/// Both directions are subsampled with a deterministic stride above kMaxSamples ("sampled").
+
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
+#include <femesher/Status.h>
 #include <femesher/stages/Fidelity.h>
 
 #include <CGAL/AABB_traits.h>
@@ -13,10 +35,13 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <map>
 #include <sstream>
+#include <unordered_map>
 
 namespace femesher {
 
@@ -31,26 +56,61 @@ using AabbTree = CGAL::AABB_tree<CGAL::AABB_traits<SK, Primitive>>;
 using KdTraits = CGAL::Search_traits_3<SK>;
 using KNN = CGAL::Orthogonal_k_neighbor_search<KdTraits>;
 
-/// A voxel boundary face in the canonical frame: centre and normal axis.
-struct Face {
-  Vec3 c;
-  int axis;
+constexpr size_t kMaxSamples = 1000000;  ///< per direction
+constexpr int kMaxRing = 12;             ///< voxels searched around a sample before the kd-tree
+constexpr double kBaryTol = 1e-9;        ///< barycentric tolerance of the containment test
+
+/// Dense index of a label value (0 = background / no tet), via a table for compact ranges.
+class LabelIndex {
+ public:
+  explicit LabelIndex(const std::vector<int32_t>& sorted) : ids_(sorted) {
+    lo_ = sorted.empty() ? 0 : sorted.front();
+    const int64_t range = sorted.empty() ? 0 : int64_t(sorted.back()) - lo_ + 1;
+    if (range <= (int64_t(1) << 22)) {
+      table_.assign(size_t(range), 0);
+      for (size_t k = 0; k < sorted.size(); ++k) table_[size_t(int64_t(sorted[k]) - lo_)] = uint16_t(k);
+    } else {
+      for (size_t k = 0; k < sorted.size(); ++k) map_[sorted[k]] = uint16_t(k);
+    }
+  }
+  uint16_t operator()(int32_t l) const {
+    if (!table_.empty()) return table_[size_t(int64_t(l) - lo_)];
+    return map_.at(l);
+  }
+  size_t size() const { return ids_.size(); }
+  int32_t label(size_t k) const { return ids_[k]; }
+
+ private:
+  std::vector<int32_t> ids_;
+  int32_t lo_ = 0;
+  std::vector<uint16_t> table_;
+  std::unordered_map<int32_t, uint16_t> map_;
 };
 
-DistanceStats stats(std::vector<double>& d) {
+DistanceStats stats(std::vector<double>& d, size_t population) {
   DistanceStats s;
   s.samples = d.size();
+  s.population = population;
+  s.sampled = d.size() < population;
   if (d.empty()) return s;
   std::sort(d.begin(), d.end());
   double sum = 0;
   for (double x : d) sum += x;
   s.mean = sum / double(d.size());
-  auto q = [&](double f) { return d[std::min(d.size() - 1, size_t(f * double(d.size() - 1) + 0.5))]; };
+  // nearest-rank percentiles
+  auto q = [&](double f) {
+    const size_t k = size_t(std::ceil(f * double(d.size())));
+    return d[std::min(d.size() - 1, k == 0 ? 0 : k - 1)];
+  };
   s.median = q(0.5);
   s.p95 = q(0.95);
   s.p99 = q(0.99);
   s.max = d.back();
   return s;
+}
+
+void checkCancel(RunContext* ctx) {
+  if (ctx) ctx->checkCancel();
 }
 
 }  // namespace
@@ -59,189 +119,441 @@ FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh, R
   FidelityReport rep;
   const auto& dims = labels.dims;
   const Vec3& sp = labels.spacing;
+  const size_t nv = labels.voxelCount();
+  const std::string where = labels.sourcePath.empty() ? "the label map" : labels.sourcePath;
+  if (dims[0] <= 0 || dims[1] <= 0 || dims[2] <= 0 || labels.labels.size() != nv)
+    throw Error(ErrorCode::InvalidArgument,
+                "Fidelity: " + where + " has inconsistent dimensions and voxel data; reload it");
+  if (!(sp[0] > 0 && sp[1] > 0 && sp[2] > 0) || std::fabs(labels.directionDeterminant()) < 1e-12)
+    throw Error(ErrorCode::InvalidArgument,
+                "Fidelity: " + where + " has a non-positive spacing or a singular direction matrix");
+  if (mesh.tetLabels.size() != mesh.tets.size())
+    throw Error(ErrorCode::InvalidArgument,
+                "Fidelity: the mesh has " + std::to_string(mesh.tets.size()) + " tets but " +
+                    std::to_string(mesh.tetLabels.size()) + " tet labels; re-create the mesh");
+  const int32_t np = int32_t(mesh.points.size());
+  for (const auto& T : mesh.tets)
+    for (int32_t v : T)
+      if (v < 0 || v >= np)
+        throw Error(ErrorCode::InvalidArgument,
+                    "Fidelity: a tet refers to a point index outside the mesh; re-create the mesh");
+  const int threads = resolveThreads(ctx ? ctx->threads() : 0);
   rep.voxelSize = std::min({sp[0], sp[1], sp[2]});
   const double voxelVolume = sp[0] * sp[1] * sp[2];
-  const size_t nv = labels.voxelCount();
+  const size_t sliceSize = size_t(dims[0]) * size_t(dims[1]);
+  auto canceled = [ctx] { return ctx && ctx->isCanceled(); };
 
-  // --- Rasterise the mesh onto the voxel centres --------------------------------------------
-  std::vector<Vec3> idx(mesh.points.size());
-  for (size_t i = 0; i < mesh.points.size(); ++i) idx[i] = labels.physicalToIndex(mesh.points[i]);
-  std::vector<int32_t> meshLabel(nv, 0);
-  std::map<int32_t, double> meshVolume;
-  std::map<int32_t, size_t> tetCount;
-  for (size_t t = 0; t < mesh.tets.size(); ++t) {
-    const auto& T = mesh.tets[t];
-    meshVolume[mesh.tetLabels[t]] += std::fabs(mesh.tetVolume(t));
-    ++tetCount[mesh.tetLabels[t]];
-    const Vec3 &a = idx[T[0]], &b = idx[T[1]], &c = idx[T[2]], &d = idx[T[3]];
-    int lo[3], hi[3];
-    for (int k = 0; k < 3; ++k) {
-      const double mn = std::min({a[k], b[k], c[k], d[k]}), mx = std::max({a[k], b[k], c[k], d[k]});
-      lo[k] = std::max(0, int(std::ceil(mn - 1e-9)));
-      hi[k] = std::min(dims[k] - 1, int(std::floor(mx + 1e-9)));
-    }
-    if (lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2]) continue;
-    // Barycentric coordinates via the inverse of [b-a, c-a, d-a].
-    const double m[9] = {b[0] - a[0], c[0] - a[0], d[0] - a[0], b[1] - a[1], c[1] - a[1],
-                         d[1] - a[1], b[2] - a[2], c[2] - a[2], d[2] - a[2]};
-    const double det = m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6]) +
-                       m[2] * (m[3] * m[7] - m[4] * m[6]);
-    if (std::fabs(det) < 1e-300) continue;
-    const double inv[9] = {(m[4] * m[8] - m[5] * m[7]) / det, (m[2] * m[7] - m[1] * m[8]) / det,
-                           (m[1] * m[5] - m[2] * m[4]) / det, (m[5] * m[6] - m[3] * m[8]) / det,
-                           (m[0] * m[8] - m[2] * m[6]) / det, (m[2] * m[3] - m[0] * m[5]) / det,
-                           (m[3] * m[7] - m[4] * m[6]) / det, (m[1] * m[6] - m[0] * m[7]) / det,
-                           (m[0] * m[4] - m[1] * m[3]) / det};
-    const double eps = -1e-9;
-    for (int z = lo[2]; z <= hi[2]; ++z)
-      for (int y = lo[1]; y <= hi[1]; ++y)
-        for (int x = lo[0]; x <= hi[0]; ++x) {
-          const double px = x - a[0], py = y - a[1], pz = z - a[2];
-          const double u = inv[0] * px + inv[1] * py + inv[2] * pz;
-          const double v = inv[3] * px + inv[4] * py + inv[5] * pz;
-          const double w = inv[6] * px + inv[7] * py + inv[8] * pz;
-          if (u >= eps && v >= eps && w >= eps && u + v + w <= 1 - eps)
-            meshLabel[labels.index(x, y, z)] = mesh.tetLabels[t];
+  // --- Distinct labels (input and mesh), index 0 = background ---------------------------------
+  std::vector<int32_t> ids{0};
+  {
+    std::vector<std::vector<int32_t>> found(static_cast<size_t>(dims[2]));
+    parallelFor(size_t(dims[2]), threads, [&](size_t z0, size_t z1, int) {
+      for (size_t z = z0; z < z1; ++z) {
+        std::vector<int32_t>& f = found[z];
+        int32_t last = 0;
+        bool any = false;
+        for (size_t i = z * sliceSize, e = i + sliceSize; i < e; ++i) {
+          const int32_t l = labels.labels[i];
+          if (any && l == last) continue;
+          last = l;
+          any = true;
+          if (std::find(f.begin(), f.end(), l) == f.end()) f.push_back(l);
         }
-    if (ctx && (t & 0xFFFF) == 0) ctx->progress(0.4 * double(t) / double(mesh.tets.size()));
+      }
+    });
+    for (const auto& f : found) ids.insert(ids.end(), f.begin(), f.end());
+    ids.insert(ids.end(), mesh.tetLabels.begin(), mesh.tetLabels.end());
+    std::sort(ids.begin(), ids.end());
+    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+    if (ids.size() > 65535)
+      throw Error(ErrorCode::TooManyLabels,
+                  "Fidelity: more than 65,535 distinct labels in " + where + " and the mesh");
   }
+  const LabelIndex index(ids);
+  const uint16_t bg = index(0);  // "no tet" counts as background
+  if (ctx) ctx->progress(0.05);
 
-  // --- Dice and volumes per label --------------------------------------------------------------
-  std::map<int32_t, size_t> inLabels, inMesh, both;
-  for (size_t i = 0; i < nv; ++i) {
-    const int32_t a = labels.labels[i], b = meshLabel[i];
-    ++inLabels[a];
-    ++inMesh[b];
-    if (a == b) ++both[a];
+  // --- Rasterise the mesh onto the voxel centres ------------------------------------------------
+  std::vector<Vec3> idx(mesh.points.size());
+  parallelFor(idx.size(), threads, [&](size_t b, size_t e, int) {
+    for (size_t i = b; i < e; ++i) idx[i] = labels.physicalToIndex(mesh.points[i]);
+  });
+  const size_t nt = mesh.tets.size();
+  std::vector<std::array<int, 2>> zRange(nt);  // voxel z range of each tet (empty when lo > hi)
+  parallelFor(nt, threads, [&](size_t b, size_t e, int) {
+    for (size_t t = b; t < e; ++t) {
+      const auto& T = mesh.tets[t];
+      const double mn = std::min({idx[T[0]][2], idx[T[1]][2], idx[T[2]][2], idx[T[3]][2]});
+      const double mx = std::max({idx[T[0]][2], idx[T[1]][2], idx[T[2]][2], idx[T[3]][2]});
+      zRange[t] = {int(std::max(-1.0, std::ceil(mn - 1e-6))),
+                   int(std::min(double(dims[2]), std::floor(mx + 1e-6)))};
+    }
+  });
+  std::vector<uint16_t> meshLabel(nv, bg);
+  std::vector<uint16_t> tetIndex(nt);
+  for (size_t t = 0; t < nt; ++t) tetIndex[t] = index(mesh.tetLabels[t]);
+  // Outward normal lexicographically positive (see the file comment).
+  auto lexPositive = [](const double* n) {
+    const double s = std::max({std::fabs(n[0]), std::fabs(n[1]), std::fabs(n[2])}) * 1e-9;
+    for (int k = 0; k < 3; ++k) {
+      if (n[k] > s) return true;
+      if (n[k] < -s) return false;
+    }
+    return false;
+  };
+  const int slabs = std::min(dims[2], threads * 8);
+  parallelFor(size_t(slabs), threads, [&](size_t s0, size_t s1, int) {
+    for (size_t s = s0; s < s1; ++s) {
+      const int zs = int(size_t(dims[2]) * s / size_t(slabs));
+      const int ze = int(size_t(dims[2]) * (s + 1) / size_t(slabs)) - 1;
+      for (size_t t = 0; t < nt; ++t) {
+        if ((t & 0xFFFF) == 0 && canceled()) return;
+        const int lo2 = std::max(zs, zRange[t][0]), hi2 = std::min(ze, zRange[t][1]);
+        if (lo2 > hi2) continue;
+        const auto& T = mesh.tets[t];
+        const Vec3 &a = idx[T[0]], &b = idx[T[1]], &c = idx[T[2]], &d = idx[T[3]];
+        int lo[2], hi[2];
+        for (int k = 0; k < 2; ++k) {
+          const double mn = std::min({a[k], b[k], c[k], d[k]}), mx = std::max({a[k], b[k], c[k], d[k]});
+          lo[k] = std::max(0, int(std::max(-1.0, std::ceil(mn - 1e-6))));
+          hi[k] = std::min(dims[k] - 1, int(std::min(double(dims[k]), std::floor(mx + 1e-6))));
+        }
+        if (lo[0] > hi[0] || lo[1] > hi[1]) continue;
+        const double m[9] = {b[0] - a[0], c[0] - a[0], d[0] - a[0], b[1] - a[1], c[1] - a[1],
+                             d[1] - a[1], b[2] - a[2], c[2] - a[2], d[2] - a[2]};
+        const double det = m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6]) +
+                           m[2] * (m[3] * m[7] - m[4] * m[6]);
+        const double scale = std::fabs(m[0]) + std::fabs(m[4]) + std::fabs(m[8]) + std::fabs(m[1]) +
+                             std::fabs(m[2]) + std::fabs(m[3]) + std::fabs(m[5]) + std::fabs(m[6]) +
+                             std::fabs(m[7]);
+        if (!(std::fabs(det) > 1e-14 * scale * scale * scale)) continue;  // flat tet: no interior
+        // Rows of the inverse = gradients of λ1..λ3; λ0 = 1 - λ1 - λ2 - λ3.
+        const double g[4][3] = {
+            {0, 0, 0},
+            {(m[4] * m[8] - m[5] * m[7]) / det, (m[2] * m[7] - m[1] * m[8]) / det,
+             (m[1] * m[5] - m[2] * m[4]) / det},
+            {(m[5] * m[6] - m[3] * m[8]) / det, (m[0] * m[8] - m[2] * m[6]) / det,
+             (m[2] * m[3] - m[0] * m[5]) / det},
+            {(m[3] * m[7] - m[4] * m[6]) / det, (m[1] * m[6] - m[0] * m[7]) / det,
+             (m[0] * m[4] - m[1] * m[3]) / det}};
+        bool keepOnFace[4];
+        for (int f = 1; f < 4; ++f) {
+          const double n[3] = {-g[f][0], -g[f][1], -g[f][2]};
+          keepOnFace[f] = lexPositive(n);
+        }
+        {
+          const double n[3] = {g[1][0] + g[2][0] + g[3][0], g[1][1] + g[2][1] + g[3][1],
+                               g[1][2] + g[2][2] + g[3][2]};
+          keepOnFace[0] = lexPositive(n);
+        }
+        auto ok = [&](double l, int f) { return l > kBaryTol || (l >= -kBaryTol && keepOnFace[f]); };
+        const uint16_t lab = tetIndex[t];
+        for (int z = lo2; z <= hi2; ++z)
+          for (int y = lo[1]; y <= hi[1]; ++y) {
+            const double py = y - a[1], pz = z - a[2];
+            const double u0 = g[1][1] * py + g[1][2] * pz, v0 = g[2][1] * py + g[2][2] * pz,
+                         w0 = g[3][1] * py + g[3][2] * pz;
+            size_t vi = labels.index(lo[0], y, z);
+            for (int x = lo[0]; x <= hi[0]; ++x, ++vi) {
+              const double px = x - a[0];
+              const double u = u0 + g[1][0] * px, v = v0 + g[2][0] * px, w = w0 + g[3][0] * px;
+              if (ok(u, 1) && ok(v, 2) && ok(w, 3) && ok(1.0 - u - v - w, 0)) meshLabel[vi] = lab;
+            }
+          }
+      }
+    }
+  });
+  checkCancel(ctx);
+  if (ctx) ctx->progress(0.35);
+
+  // --- Dice and volumes per label ---------------------------------------------------------------
+  const size_t L = index.size();
+  std::vector<size_t> inLabels(L, 0), inMesh(L, 0), both(L, 0);
+  {
+    std::vector<std::vector<size_t>> part(static_cast<size_t>(dims[2]));
+    parallelFor(size_t(dims[2]), threads, [&](size_t z0, size_t z1, int) {
+      std::vector<size_t> a(L, 0), b(L, 0), c(L, 0);
+      for (size_t i = z0 * sliceSize, e = z1 * sliceSize; i < e; ++i) {
+        const uint16_t x = index(labels.labels[i]), y = meshLabel[i];
+        ++a[x];
+        ++b[y];
+        c[x] += x == y;
+      }
+      std::vector<size_t> out;
+      out.reserve(3 * L);
+      out.insert(out.end(), a.begin(), a.end());
+      out.insert(out.end(), b.begin(), b.end());
+      out.insert(out.end(), c.begin(), c.end());
+      part[z0] = std::move(out);
+    });
+    for (const auto& p : part) {
+      if (p.empty()) continue;
+      for (size_t k = 0; k < L; ++k) {
+        inLabels[k] += p[k];
+        inMesh[k] += p[L + k];
+        both[k] += p[2 * L + k];
+      }
+    }
   }
-  const bool noBackground = !inLabels.count(0);
-  std::map<int32_t, bool> present;
-  for (int32_t l : mesh.tetLabels) present[l] = true;
-  for (const auto& [label, count] : inLabels) {
-    if (label == 0) continue;
+  std::vector<double> meshVolume(L, 0.0);
+  std::vector<size_t> tetCount(L, 0);
+  for (size_t t = 0; t < nt; ++t) {
+    meshVolume[tetIndex[t]] += std::fabs(mesh.tetVolume(t));
+    ++tetCount[tetIndex[t]];
+  }
+  for (size_t k = 0; k < L; ++k) {
+    const int32_t label = index.label(k);
+    if (label == 0 || inLabels[k] == 0) continue;  // not a material of the input
     MaterialFidelity f;
     f.label = label;
     const Material* mat = findMaterial(labels.materials, label);
     if (!mat) mat = findMaterial(mesh.materials, label);
     f.name = mat ? mat->name : "label " + std::to_string(label);
-    f.voxels = count;
-    f.meshVoxels = inMesh.count(label) ? inMesh[label] : 0;
-    f.voxelVolume = double(count) * voxelVolume;
-    f.meshVolume = meshVolume.count(label) ? meshVolume[label] : 0.0;
-    f.volumeError = f.voxelVolume > 0 ? (f.meshVolume - f.voxelVolume) / f.voxelVolume : 0.0;
-    const size_t inter = both.count(label) ? both[label] : 0;
-    f.dice = count + f.meshVoxels > 0 ? 2.0 * double(inter) / double(count + f.meshVoxels) : 0.0;
-    f.tets = tetCount.count(label) ? tetCount[label] : 0;
+    f.voxels = inLabels[k];
+    f.meshVoxels = inMesh[k];
+    f.voxelVolume = double(f.voxels) * voxelVolume;
+    f.meshVolume = meshVolume[k];
+    f.volumeError = (f.meshVolume - f.voxelVolume) / f.voxelVolume;
+    f.dice = 2.0 * double(both[k]) / double(f.voxels + f.meshVoxels);
+    f.tets = tetCount[k];
     rep.materials.push_back(f);
-    if (!present.count(label)) rep.missingLabels.push_back(label);
+    if (f.tets == 0) rep.missingLabels.push_back(label);
   }
-  if (ctx) ctx->progress(0.5);
-  (void)noBackground;
+  std::vector<uint16_t>().swap(meshLabel);
+  checkCancel(ctx);
+  if (ctx) ctx->progress(0.45);
 
-  // --- Boundary distances --------------------------------------------------------------------
-  // Label boundary faces (canonical frame): between 6-neighbours of different labels, and on the
-  // volume border for labelled voxels (the mesh ends there).
-  std::vector<Face> faces;
-  for (int z = 0; z < dims[2]; ++z)
-    for (int y = 0; y < dims[1]; ++y)
-      for (int x = 0; x < dims[0]; ++x) {
-        const int32_t l = labels.at(x, y, z);
-        const int p[3] = {x, y, z};
-        for (int a = 0; a < 3; ++a) {
-          int q[3] = {x, y, z};
-          q[a] += 1;
-          const bool border = q[a] >= dims[a];
-          const int32_t m = border ? 0 : labels.at(q[0], q[1], q[2]);
-          Vec3 c{p[0] * sp[0], p[1] * sp[1], p[2] * sp[2]};
-          if ((border && l != 0) || (!border && m != l)) {
-            c[a] += 0.5 * sp[a];
-            faces.push_back({c, a});
+  // --- Label boundary faces: per-voxel mask ---------------------------------------------------
+  // bits 0..2: face on the + side of axis a (neighbour differs, or volume border and labelled);
+  // bits 3..5: face on the - side, only on the volume border (index 0) of labelled voxels.
+  std::vector<uint8_t> faceMask(nv, 0);
+  std::vector<size_t> facesPerSlice(size_t(dims[2]), 0);
+  const bool noBackground = labels.hasNoBackground();
+  parallelFor(size_t(dims[2]), threads, [&](size_t z0, size_t z1, int) {
+    for (int z = int(z0); z < int(z1); ++z) {
+      size_t count = 0;
+      for (int y = 0; y < dims[1]; ++y)
+        for (int x = 0; x < dims[0]; ++x) {
+          const size_t i = labels.index(x, y, z);
+          const int32_t l = labels.labels[i];
+          const bool labelled = l != 0 || noBackground;
+          const int p[3] = {x, y, z};
+          const size_t stride[3] = {1, size_t(dims[0]), sliceSize};
+          uint8_t m = 0;
+          for (int a = 0; a < 3; ++a) {
+            if (p[a] + 1 < dims[a]) {
+              if (labels.labels[i + stride[a]] != l) m |= uint8_t(1u << a);
+            } else if (labelled) {
+              m |= uint8_t(1u << a);
+            }
+            if (p[a] == 0 && labelled) m |= uint8_t(1u << (3 + a));
           }
-          if (p[a] == 0 && l != 0) {
-            Vec3 c0{p[0] * sp[0], p[1] * sp[1], p[2] * sp[2]};
-            c0[a] -= 0.5 * sp[a];
-            faces.push_back({c0, a});
-          }
+          faceMask[i] = m;
+          count += size_t(__builtin_popcount(m));
         }
-      }
-  const std::vector<InterfaceTriangle> tris = extractInterfaces(mesh);
-  std::vector<Vec3> can(mesh.points.size());
-  for (size_t i = 0; i < can.size(); ++i) can[i] = labels.physicalToCanonical(mesh.points[i]);
-  if (ctx) ctx->progress(0.6);
-  if (!faces.empty() && !tris.empty()) {
-    // mesh -> labels: samples on the triangles to the nearest boundary square.
-    std::vector<Vec3> samples;
-    const size_t maxSamples = 2000000;
-    const size_t triStride = std::max<size_t>(1, tris.size() * 7 / maxSamples);
-    for (size_t t = 0; t < tris.size(); t += triStride) {
-      const Vec3 &a = can[tris[t].v[0]], &b = can[tris[t].v[1]], &c = can[tris[t].v[2]];
-      samples.push_back(a);
-      samples.push_back({(a[0] + b[0]) / 2, (a[1] + b[1]) / 2, (a[2] + b[2]) / 2});
-      samples.push_back({(a[0] + c[0]) / 2, (a[1] + c[1]) / 2, (a[2] + c[2]) / 2});
-      samples.push_back({(a[0] + b[0] + c[0]) / 3, (a[1] + b[1] + c[1]) / 3, (a[2] + b[2] + c[2]) / 3});
+      facesPerSlice[size_t(z)] = count;
     }
-    std::vector<SPoint> centres;
-    centres.reserve(faces.size());
-    for (const auto& f : faces) centres.emplace_back(f.c[0], f.c[1], f.c[2]);
-    KNN::Tree tree(centres.begin(), centres.end());
-    auto squareDistance = [&](const Vec3& p, const SPoint& c, int axis) {
-      double d2 = 0;
-      const double cc[3] = {c.x(), c.y(), c.z()};
-      for (int k = 0; k < 3; ++k) {
-        double d = std::fabs(p[k] - cc[k]);
-        if (k != axis) d = std::max(0.0, d - 0.5 * sp[k]);
-        d2 += d * d;
+  });
+  size_t faceTotal = 0;
+  std::vector<size_t> faceOffset(size_t(dims[2]) + 1, 0);
+  for (int z = 0; z < dims[2]; ++z) faceOffset[size_t(z) + 1] = faceOffset[size_t(z)] + facesPerSlice[size_t(z)];
+  faceTotal = faceOffset.back();
+  checkCancel(ctx);
+
+  const std::vector<InterfaceTriangle> tris = extractInterfaces(mesh);
+  checkCancel(ctx);
+  if (ctx) ctx->progress(0.55);
+  if (faceTotal == 0 || tris.empty()) {
+    if (ctx) ctx->progress(1.0);
+    return rep;
+  }
+  // Canonical frame (mm) of the mesh points.
+  std::vector<Vec3> can(mesh.points.size());
+  for (size_t i = 0; i < can.size(); ++i)
+    can[i] = {idx[i][0] * sp[0], idx[i][1] * sp[1], idx[i][2] * sp[2]};
+
+  // Face geometry: centre (canonical) of face bit `b` of voxel (x, y, z).
+  auto faceCentre = [&](int x, int y, int z, int bit) {
+    Vec3 c{x * sp[0], y * sp[1], z * sp[2]};
+    const int a = bit % 3;
+    c[size_t(a)] += (bit < 3 ? 0.5 : -0.5) * sp[size_t(a)];
+    return c;
+  };
+  // Exact squared distance from canonical point q to face `bit` of voxel v (index coords).
+  auto faceDistance2 = [&](const Vec3& q, int x, int y, int z, int bit) {
+    const Vec3 c = faceCentre(x, y, z, bit);
+    const int a = bit % 3;
+    double d2 = 0;
+    for (int k = 0; k < 3; ++k) {
+      double d = std::fabs(q[size_t(k)] - c[size_t(k)]);
+      if (k != a) d = std::max(0.0, d - 0.5 * sp[size_t(k)]);
+      d2 += d * d;
+    }
+    return d2;
+  };
+
+  // --- mesh -> labels ---------------------------------------------------------------------------
+  std::vector<Vec3> samples;
+  size_t population1 = 0;
+  {
+    std::vector<char> isVertex(mesh.points.size(), 0);
+    for (const auto& t : tris)
+      for (int32_t v : t.v) isVertex[size_t(v)] = 1;
+    std::vector<Vec3> all;
+    for (size_t i = 0; i < isVertex.size(); ++i)
+      if (isVertex[i]) all.push_back(can[i]);
+    for (const auto& t : tris) {
+      const Vec3 &a = can[size_t(t.v[0])], &b = can[size_t(t.v[1])], &c = can[size_t(t.v[2])];
+      all.push_back({(a[0] + b[0] + c[0]) / 3, (a[1] + b[1] + c[1]) / 3, (a[2] + b[2] + c[2]) / 3});
+      all.push_back({(a[0] + b[0]) / 2, (a[1] + b[1]) / 2, (a[2] + b[2]) / 2});
+      all.push_back({(b[0] + c[0]) / 2, (b[1] + c[1]) / 2, (b[2] + c[2]) / 2});
+      all.push_back({(c[0] + a[0]) / 2, (c[1] + a[1]) / 2, (c[2] + a[2]) / 2});
+    }
+    const size_t stride = (all.size() + kMaxSamples - 1) / kMaxSamples;
+    if (stride <= 1) {
+      samples.swap(all);
+    } else {
+      for (size_t i = 0; i < all.size(); i += stride) samples.push_back(all[i]);
+    }
+    population1 = all.size();
+  }
+  std::vector<double> d1(samples.size(), -1.0);
+  std::atomic<size_t> farSamples{0};
+  parallelFor(samples.size(), threads, [&](size_t b, size_t e, int) {
+    for (size_t s = b; s < e; ++s) {
+      if ((s & 0xFFF) == 0 && canceled()) return;
+      const Vec3& q = samples[s];
+      int c[3];
+      for (int k = 0; k < 3; ++k)
+        c[k] = int(std::lround(std::clamp(q[size_t(k)] / sp[size_t(k)], 0.0, double(dims[k] - 1))));
+      double best = std::numeric_limits<double>::infinity();
+      for (int r = 0; r <= kMaxRing; ++r) {
+        const int z0 = std::max(0, c[2] - r), z1 = std::min(dims[2] - 1, c[2] + r);
+        const int y0 = std::max(0, c[1] - r), y1 = std::min(dims[1] - 1, c[1] + r);
+        const int x0 = std::max(0, c[0] - r), x1 = std::min(dims[0] - 1, c[0] + r);
+        auto visit = [&](int x, int y, int z) {
+          const uint8_t m = faceMask[labels.index(x, y, z)];
+          if (!m) return;
+          for (int bit = 0; bit < 6; ++bit)
+            if (m & (1u << bit)) best = std::min(best, faceDistance2(q, x, y, z, bit));
+        };
+        for (int z = z0; z <= z1; ++z)
+          for (int y = y0; y <= y1; ++y) {
+            if (std::abs(z - c[2]) == r || std::abs(y - c[1]) == r) {
+              for (int x = x0; x <= x1; ++x) visit(x, y, z);
+            } else {  // interior row of the cube: only its two ends are on the shell
+              if (c[0] - r >= 0) visit(c[0] - r, y, z);
+              if (r > 0 && c[0] + r < dims[0]) visit(c[0] + r, y, z);
+            }
+          }
+        // Faces of voxels on rings > r are at least r voxels (of the smallest spacing) away.
+        if (best <= double(r) * double(r) * rep.voxelSize * rep.voxelSize) break;
       }
-      return d2;
-    };
-    // Recover the axis of a centre: the coordinate that sits on a half-voxel.
-    auto axisOf = [&](const SPoint& c) {
-      const double cc[3] = {c.x(), c.y(), c.z()};
-      int best = 0;
-      double bestFrac = 1;
+      if (std::isfinite(best) && best <= double(kMaxRing) * kMaxRing * rep.voxelSize * rep.voxelSize)
+        d1[s] = std::sqrt(best) / rep.voxelSize;
+      else
+        ++farSamples;
+    }
+  });
+  checkCancel(ctx);
+  if (farSamples > 0) {
+    // Rare: samples far from every boundary face. kd-tree over all face centres.
+    std::vector<SPoint> centres;
+    centres.reserve(faceTotal);
+    std::vector<std::array<int, 4>> faceIds;
+    faceIds.reserve(faceTotal);
+    for (int z = 0; z < dims[2]; ++z)
+      for (int y = 0; y < dims[1]; ++y)
+        for (int x = 0; x < dims[0]; ++x) {
+          const uint8_t m = faceMask[labels.index(x, y, z)];
+          for (int bit = 0; bit < 6; ++bit)
+            if (m & (1u << bit)) {
+              const Vec3 c = faceCentre(x, y, z, bit);
+              centres.emplace_back(c[0], c[1], c[2]);
+            }
+        }
+    // The kd-tree reorders its points; find the face again from the centre.
+    KNN::Tree tree(centres.begin(), centres.end());
+    tree.build();
+    auto faceOf = [&](const SPoint& p, int out[4]) {
+      const double pc[3] = {p.x(), p.y(), p.z()};
+      double h[3];
+      for (int k = 0; k < 3; ++k) h[k] = pc[k] / sp[size_t(k)];
+      int axis = 0;
+      double bestOff = 2;
       for (int k = 0; k < 3; ++k) {
-        const double f = std::fabs(std::fmod(cc[k] / sp[k], 1.0));
-        const double off = std::fabs(f - 0.5);
-        if (off < bestFrac) {
-          bestFrac = off;
-          best = k;
+        const double off = std::fabs(std::fabs(h[k] - std::floor(h[k])) - 0.5);
+        if (off < bestOff) {
+          bestOff = off;
+          axis = k;
         }
       }
-      return best;
+      for (int k = 0; k < 3; ++k) out[k] = int(std::lround(h[k]));
+      // the face centre is half a voxel from the voxel centre along `axis`
+      out[axis] = int(std::floor(h[axis]));
+      out[3] = axis;  // + face of the voxel below the half-integer position
+      if (out[axis] < 0) {
+        out[axis] = 0;
+        out[3] = 3 + axis;
+      }
     };
-    std::vector<double> d1(samples.size());
-    parallelFor(samples.size(), ctx ? ctx->threads() : 0, [&](size_t b, size_t e, int) {
-      for (size_t i = b; i < e; ++i) {
-        const SPoint q(samples[i][0], samples[i][1], samples[i][2]);
-        KNN search(tree, q, 8);
-        double best = 1e300;
-        for (auto it = search.begin(); it != search.end(); ++it)
-          best = std::min(best, squareDistance(samples[i], it->first, axisOf(it->first)));
-        d1[i] = std::sqrt(best) / rep.voxelSize;
+    parallelFor(samples.size(), threads, [&](size_t b, size_t e, int) {
+      for (size_t s = b; s < e; ++s) {
+        if (d1[s] >= 0) continue;
+        const Vec3& q = samples[s];
+        KNN search(tree, SPoint(q[0], q[1], q[2]), 16);
+        double best = std::numeric_limits<double>::infinity();
+        for (auto it = search.begin(); it != search.end(); ++it) {
+          int f[4];
+          faceOf(it->first, f);
+          best = std::min(best, faceDistance2(q, f[0], f[1], f[2], f[3]));
+        }
+        d1[s] = std::sqrt(best) / rep.voxelSize;
       }
     });
-    rep.meshToLabels = stats(d1);
-    if (ctx) ctx->progress(0.8);
-    // labels -> mesh: face centres to the nearest interface triangle.
+  }
+  rep.meshToLabels = stats(d1, population1);
+  checkCancel(ctx);
+  if (ctx) ctx->progress(0.75);
+
+  // --- labels -> mesh ---------------------------------------------------------------------------
+  {
     std::vector<STriangle> tv;
     tv.reserve(tris.size());
     for (const auto& t : tris) {
-      const Vec3 &a = can[t.v[0]], &b = can[t.v[1]], &c = can[t.v[2]];
+      const Vec3 &a = can[size_t(t.v[0])], &b = can[size_t(t.v[1])], &c = can[size_t(t.v[2])];
       tv.emplace_back(SPoint(a[0], a[1], a[2]), SPoint(b[0], b[1], b[2]), SPoint(c[0], c[1], c[2]));
     }
     AabbTree aabb(tv.begin(), tv.end());
+    aabb.build();
     aabb.accelerate_distance_queries();
-    const size_t stride = std::max<size_t>(1, faces.size() / maxSamples);
-    std::vector<size_t> picks;
-    for (size_t i = 0; i < faces.size(); i += stride) picks.push_back(i);
-    std::vector<double> d2(picks.size());
-    parallelFor(picks.size(), ctx ? ctx->threads() : 0, [&](size_t b, size_t e, int) {
+    (void)aabb.squared_distance(SPoint(0, 0, 0));  // builds the lazy search structures now
+    const size_t stride = (faceTotal + kMaxSamples - 1) / kMaxSamples;
+    std::vector<Vec3> centres;
+    centres.reserve(faceTotal / std::max<size_t>(1, stride) + 1);
+    for (int z = 0; z < dims[2]; ++z) {
+      size_t g = faceOffset[size_t(z)];
+      for (int y = 0; y < dims[1]; ++y)
+        for (int x = 0; x < dims[0]; ++x) {
+          const uint8_t m = faceMask[labels.index(x, y, z)];
+          if (!m) continue;
+          for (int bit = 0; bit < 6; ++bit)
+            if (m & (1u << bit)) {
+              if (stride <= 1 || g % stride == 0) centres.push_back(faceCentre(x, y, z, bit));
+              ++g;
+            }
+        }
+    }
+    std::vector<double> d2(centres.size());
+    parallelFor(centres.size(), threads, [&](size_t b, size_t e, int) {
       for (size_t k = b; k < e; ++k) {
-        const Vec3& c = faces[picks[k]].c;
+        if ((k & 0xFFF) == 0 && canceled()) return;
+        const Vec3& c = centres[k];
         d2[k] = std::sqrt(aabb.squared_distance(SPoint(c[0], c[1], c[2]))) / rep.voxelSize;
       }
     });
-    rep.labelsToMesh = stats(d2);
+    checkCancel(ctx);
+    rep.labelsToMesh = stats(d2, faceTotal);
   }
   if (ctx) ctx->progress(1.0);
   return rep;
@@ -258,10 +570,14 @@ std::string fidelityReportToJson(const FidelityReport& r) {
   j["materials"] = mats;
   j["missing_labels"] = r.missingLabels;
   auto ds = [](const DistanceStats& s) {
-    return nlohmann::json{{"samples", s.samples}, {"mean", s.mean}, {"median", s.median},
-                          {"p95", s.p95}, {"p99", s.p99}, {"max", s.max}};
+    return nlohmann::json{{"samples", s.samples}, {"population", s.population},
+                          {"sampled", s.sampled}, {"mean", s.mean}, {"median", s.median},
+                          {"p95", s.p95},         {"p99", s.p99},   {"max", s.max}};
   };
-  j["boundary_distance_unit"] = "voxels (min spacing)";
+  j["dice_definition"] =
+      "2|A∩B|/(|A|+|B|) over voxel centres; B = centres inside tets of the label";
+  j["volume_error_definition"] = "(mesh volume - voxel count * voxel volume) / voxel volume";
+  j["boundary_distance_unit"] = "voxels (smallest spacing)";
   j["voxel_size_mm"] = r.voxelSize;
   j["mesh_to_labels"] = ds(r.meshToLabels);
   j["labels_to_mesh"] = ds(r.labelsToMesh);
@@ -270,23 +586,29 @@ std::string fidelityReportToJson(const FidelityReport& r) {
 
 std::string fidelityReportToText(const FidelityReport& r) {
   std::ostringstream os;
-  char buf[256];
-  std::snprintf(buf, sizeof buf, "%-8s %-26s %10s %10s %9s %7s\n", "label", "name", "voxels",
-                "tets", "vol.err", "Dice");
+  char buf[320];
+  std::snprintf(buf, sizeof buf, "%-8s %-26s %10s %10s %12s %12s %9s %7s\n", "label", "name",
+                "voxels", "tets", "voxel mm3", "mesh mm3", "vol.err", "Dice");
   os << buf;
   for (const auto& m : r.materials) {
-    std::snprintf(buf, sizeof buf, "%-8d %-26.26s %10zu %10zu %+8.2f%% %7.4f\n", m.label,
-                  m.name.c_str(), m.voxels, m.tets, 100.0 * m.volumeError, m.dice);
+    std::snprintf(buf, sizeof buf, "%-8d %-26.26s %10zu %10zu %12.5g %12.5g %+8.2f%% %7.4f\n",
+                  m.label, m.name.c_str(), m.voxels, m.tets, m.voxelVolume, m.meshVolume,
+                  100.0 * m.volumeError, m.dice);
     os << buf;
   }
-  std::snprintf(buf, sizeof buf,
-                "boundary distance (voxels): mesh->labels mean %.3f p99 %.3f max %.3f; "
-                "labels->mesh mean %.3f p99 %.3f max %.3f\n",
-                r.meshToLabels.mean, r.meshToLabels.p99, r.meshToLabels.max, r.labelsToMesh.mean,
-                r.labelsToMesh.p99, r.labelsToMesh.max);
+  auto line = [&](const char* name, const DistanceStats& s) {
+    std::snprintf(buf, sizeof buf,
+                  "%-13s mean %.3f  median %.3f  p95 %.3f  p99 %.3f  max %.3f  (%zu samples%s)\n",
+                  name, s.mean, s.median, s.p95, s.p99, s.max, s.samples,
+                  s.sampled ? ", subsampled" : "");
+    os << buf;
+  };
+  std::snprintf(buf, sizeof buf, "boundary distance in voxels (%.4g mm):\n", r.voxelSize);
   os << buf;
+  line("mesh->labels", r.meshToLabels);
+  line("labels->mesh", r.labelsToMesh);
   if (!r.missingLabels.empty()) {
-    os << "missing labels:";
+    os << "missing labels (no tet carries them):";
     for (int32_t l : r.missingLabels) os << " " << l;
     os << "\n";
   }

@@ -1,0 +1,292 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// Fidelity: Dice, volumes, boundary distances and missing labels against meshes built from the
+// voxels themselves (each labelled voxel box split into 6 Kuhn tets, shared corners).
+#include "MeshInvariants.h"
+
+#include <femesher/RunContext.h>
+#include <femesher/io/LabelMapIO.h>
+#include <femesher/stages/Fidelity.h>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <set>
+
+using namespace femesher;
+
+namespace {
+
+/// Oblique, left-handed geometry with anisotropic spacing (x is the smallest spacing).
+LabelVolume obliqueVolume(int nx, int ny, int nz) {
+  LabelVolume v;
+  v.dims = {nx, ny, nz};
+  v.spacing = {0.7, 1.1, 1.6};
+  v.origin = {10, -20, 5};
+  // Rotation (about a skew axis) times diag(1, 1, -1): det = -1.
+  const double a = 0.4, b = 0.3;
+  const double R[9] = {std::cos(a), -std::sin(a) * std::cos(b), std::sin(a) * std::sin(b),
+                       std::sin(a), std::cos(a) * std::cos(b), -std::cos(a) * std::sin(b),
+                       0, std::sin(b), std::cos(b)};
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) v.direction[size_t(3 * r + c)] = R[3 * r + c] * (c == 2 ? -1 : 1);
+  v.labels.assign(v.voxelCount(), 0);
+  return v;
+}
+
+/// Voxel-box mesh: every voxel whose label passes `keep` becomes a cube of 6 tets; the cube of
+/// voxel v spans index coordinates v ± 0.5 (+ shift), with corners shared between cubes.
+/// `block` > 1 meshes blocks of block³ voxels as one cube (they must be uniform).
+TetMesh voxelMesh(const LabelVolume& v, const Vec3& shift = {0, 0, 0},
+                  const std::set<int32_t>& drop = {}, int block = 1) {
+  TetMesh m;
+  const int cx = v.dims[0] / block + 1, cy = v.dims[1] / block + 1, cz = v.dims[2] / block + 1;
+  std::vector<int32_t> pid(size_t(cx) * size_t(cy) * size_t(cz), -1);
+  auto corner = [&](int i, int j, int k) {
+    int32_t& id = pid[size_t(i) + size_t(cx) * (size_t(j) + size_t(cy) * size_t(k))];
+    if (id < 0) {
+      id = int32_t(m.points.size());
+      m.points.push_back(v.indexToPhysical({i * block - 0.5 + shift[0], j * block - 0.5 + shift[1],
+                                            k * block - 0.5 + shift[2]}));
+    }
+    return id;
+  };
+  const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (int k = 0; k < v.dims[2] / block; ++k)
+    for (int j = 0; j < v.dims[1] / block; ++j)
+      for (int i = 0; i < v.dims[0] / block; ++i) {
+        const int32_t l = v.at(i * block, j * block, k * block);
+        if ((l == 0 && !v.hasNoBackground()) || drop.count(l)) continue;
+        for (const auto& p : perms) {
+          int c[3] = {i, j, k};
+          std::array<int32_t, 4> T;
+          T[0] = corner(c[0], c[1], c[2]);
+          for (int s = 0; s < 3; ++s) {
+            ++c[p[s]];
+            T[size_t(s) + 1] = corner(c[0], c[1], c[2]);
+          }
+          m.tets.push_back(T);
+          m.tetLabels.push_back(l);
+          if (m.tetVolume(m.tets.size() - 1) < 0) std::swap(m.tets.back()[2], m.tets.back()[3]);
+        }
+      }
+  std::set<int32_t> ls(m.tetLabels.begin(), m.tetLabels.end());
+  for (int32_t l : ls) m.materials.push_back({l, "label " + std::to_string(l), defaultLabelColor(l)});
+  return m;
+}
+
+/// Three labels: a 4x4x4 block (3), a slab (5) touching it, a one-voxel-thick layer (9).
+LabelVolume threeLabels() {
+  LabelVolume v = obliqueVolume(9, 8, 7);
+  for (int k = 0; k < 7; ++k)
+    for (int j = 0; j < 8; ++j)
+      for (int i = 0; i < 9; ++i) {
+        int32_t l = 0;
+        if (i >= 1 && i < 5 && j >= 1 && j < 5 && k >= 1 && k < 5) l = 3;
+        else if (i >= 5 && i < 8 && j >= 0 && j < 6 && k >= 1 && k < 6) l = 5;
+        else if (k == 6 && i < 6) l = 9;
+        v.labels[v.index(i, j, k)] = l;
+      }
+  v.materials = {{3, "block", defaultLabelColor(3)}, {5, "slab", defaultLabelColor(5)},
+                 {9, "layer", defaultLabelColor(9)}};
+  return v;
+}
+
+const MaterialFidelity* find(const FidelityReport& r, int32_t label) {
+  for (const auto& m : r.materials)
+    if (m.label == label) return &m;
+  return nullptr;
+}
+
+/// Expected Dice when the mesh label of voxel (i,j,k) is the label of voxel (i-1,j,k).
+std::map<int32_t, double> diceOfShiftByOne(const LabelVolume& v) {
+  std::map<int32_t, size_t> a, b, both;
+  for (int k = 0; k < v.dims[2]; ++k)
+    for (int j = 0; j < v.dims[1]; ++j)
+      for (int i = 0; i < v.dims[0]; ++i) {
+        const int32_t l = v.at(i, j, k), m = i > 0 ? v.at(i - 1, j, k) : 0;
+        ++a[l];
+        ++b[m];
+        if (l == m) ++both[l];
+      }
+  std::map<int32_t, double> d;
+  for (const auto& [l, n] : a)
+    if (l != 0) d[l] = 2.0 * double(both[l]) / double(n + b[l]);
+  return d;
+}
+
+}  // namespace
+
+TEST(Fidelity, ExactVoxelMeshIsPerfect) {
+  const LabelVolume v = threeLabels();
+  ASSERT_LT(v.directionDeterminant(), 0);
+  const TetMesh m = voxelMesh(v);
+  femesher::testing::expectConformal(m);
+  RunContext ctx;
+  ctx.setThreads(2);
+  const FidelityReport r = computeFidelity(v, m, &ctx);
+  ASSERT_EQ(r.materials.size(), 3u);
+  EXPECT_TRUE(r.missingLabels.empty());
+  EXPECT_NEAR(r.voxelSize, 0.7, 1e-15);
+  for (const auto& f : r.materials) {
+    EXPECT_EQ(f.voxels, f.meshVoxels) << f.label;
+    EXPECT_DOUBLE_EQ(f.dice, 1.0) << f.label;
+    EXPECT_NEAR(f.volumeError, 0.0, 1e-9) << f.label;
+    EXPECT_NEAR(f.voxelVolume, double(f.voxels) * 0.7 * 1.1 * 1.6, 1e-9);
+    EXPECT_EQ(f.tets, 6 * f.voxels);
+  }
+  EXPECT_EQ(find(r, 3)->name, "block");
+  EXPECT_EQ(find(r, 3)->voxels, 64u);
+  EXPECT_GT(r.meshToLabels.samples, 100u);
+  EXPECT_GT(r.labelsToMesh.samples, 100u);
+  EXPECT_FALSE(r.meshToLabels.sampled);
+  EXPECT_LT(r.meshToLabels.max, 1e-6);
+  EXPECT_LT(r.labelsToMesh.max, 1e-6);
+  // Single-threaded gives the same result.
+  RunContext one;
+  one.setThreads(1);
+  const FidelityReport r1 = computeFidelity(v, m, &one);
+  for (size_t k = 0; k < r.materials.size(); ++k)
+    EXPECT_EQ(r.materials[k].meshVoxels, r1.materials[k].meshVoxels);
+}
+
+TEST(Fidelity, HalfVoxelShiftLowersDiceAndGivesHalfVoxelDistance) {
+  const LabelVolume v = threeLabels();
+  // Shift by half a voxel along index axis 0 (the smallest spacing): every voxel centre lies on
+  // a cube face; the tie rule gives it to exactly one cube, the one of voxel (i-1, j, k).
+  const TetMesh m = voxelMesh(v, {0.5, 0, 0});
+  const FidelityReport r = computeFidelity(v, m);
+  const auto expected = diceOfShiftByOne(v);
+  ASSERT_EQ(r.materials.size(), 3u);
+  for (const auto& f : r.materials) {
+    EXPECT_NEAR(f.dice, expected.at(f.label), 1e-12) << f.label;
+    EXPECT_LT(f.dice, 0.999) << f.label;
+    EXPECT_NEAR(f.volumeError, 0.0, 1e-9);  // shifting keeps the volume
+  }
+  EXPECT_NEAR(find(r, 3)->dice, 2.0 * 48 / 128, 1e-12);  // 4x4x4 block loses one 4x4 layer
+  EXPECT_NEAR(r.meshToLabels.max, 0.5, 1e-6);
+  EXPECT_NEAR(r.labelsToMesh.max, 0.5, 1e-6);
+  EXPECT_GT(r.meshToLabels.mean, 0.05);
+  EXPECT_LT(r.meshToLabels.mean, 0.5);
+  EXPECT_GT(r.labelsToMesh.mean, 0.05);
+  EXPECT_LE(r.labelsToMesh.median, r.labelsToMesh.p95);
+  EXPECT_LE(r.labelsToMesh.p95, r.labelsToMesh.p99);
+  EXPECT_LE(r.labelsToMesh.p99, r.labelsToMesh.max);
+
+  // A shift of 0.25 voxel along axis 1 keeps every centre inside its own cube (Dice 1) but the
+  // surfaces move by 0.25 * 1.1 / 0.7 voxels of the smallest spacing.
+  const FidelityReport q = computeFidelity(v, voxelMesh(v, {0, 0.25, 0}));
+  for (const auto& f : q.materials) EXPECT_DOUBLE_EQ(f.dice, 1.0);
+  EXPECT_NEAR(q.meshToLabels.max, 0.25 * 1.1 / 0.7, 1e-6);
+  EXPECT_NEAR(q.labelsToMesh.max, 0.25 * 1.1 / 0.7, 1e-6);
+}
+
+TEST(Fidelity, MissingLabelIsListed) {
+  const LabelVolume v = threeLabels();
+  const TetMesh m = voxelMesh(v, {0, 0, 0}, {9});
+  const FidelityReport r = computeFidelity(v, m);
+  ASSERT_EQ(r.missingLabels.size(), 1u);
+  EXPECT_EQ(r.missingLabels[0], 9);
+  ASSERT_NE(find(r, 9), nullptr);
+  EXPECT_EQ(find(r, 9)->tets, 0u);
+  EXPECT_EQ(find(r, 9)->dice, 0.0);
+  EXPECT_NEAR(find(r, 9)->volumeError, -1.0, 1e-12);
+  EXPECT_DOUBLE_EQ(find(r, 3)->dice, 1.0);
+  EXPECT_GT(r.labelsToMesh.max, 0.9);  // the layer's outer faces are a voxel from any mesh face
+  const auto j = nlohmann::json::parse(fidelityReportToJson(r));
+  EXPECT_EQ(j["missing_labels"][0], 9);
+  EXPECT_EQ(j["materials"].size(), 3u);
+  EXPECT_EQ(j["mesh_to_labels"]["sampled"], false);
+  const std::string text = fidelityReportToText(r);
+  EXPECT_NE(text.find("missing labels"), std::string::npos);
+  EXPECT_NE(text.find("layer"), std::string::npos);
+}
+
+TEST(Fidelity, LabelMapWithoutBackground) {
+  LabelVolume v = obliqueVolume(5, 4, 3);
+  for (int k = 0; k < 3; ++k)
+    for (int j = 0; j < 4; ++j)
+      for (int i = 0; i < 5; ++i) v.labels[v.index(i, j, k)] = i < 2 ? 1 : (j < 2 ? 2 : 4);
+  ASSERT_TRUE(v.hasNoBackground());
+  const TetMesh m = voxelMesh(v);
+  const FidelityReport r = computeFidelity(v, m);
+  ASSERT_EQ(r.materials.size(), 3u);
+  for (const auto& f : r.materials) {
+    EXPECT_DOUBLE_EQ(f.dice, 1.0);
+    EXPECT_NEAR(f.volumeError, 0, 1e-9);
+  }
+  EXPECT_LT(r.meshToLabels.max, 1e-6);
+  EXPECT_LT(r.labelsToMesh.max, 1e-6);
+  // Shifted: voxels of the first column are not covered at all and count against label 1.
+  const FidelityReport s = computeFidelity(v, voxelMesh(v, {0.5, 0, 0}));
+  const auto expected = diceOfShiftByOne(v);
+  for (const auto& f : s.materials) EXPECT_NEAR(f.dice, expected.at(f.label), 1e-12) << f.label;
+}
+
+TEST(Fidelity, MeshFarFromLabelsUsesTheFallbackSearch) {
+  // A mesh moved 20 voxels away: the ring search gives up and the kd-tree answers.
+  const LabelVolume v = threeLabels();
+  const FidelityReport r = computeFidelity(v, voxelMesh(v, {20, 0, 0}));
+  for (const auto& f : r.materials) EXPECT_EQ(f.dice, 0.0);
+  EXPECT_GT(r.meshToLabels.mean, 5.0);
+  EXPECT_GT(r.meshToLabels.max, 19.0);
+  // Lower bound: every mesh point is at least 20 - 9 voxels (of x) right of the volume's box.
+  EXPECT_GE(r.meshToLabels.max, r.meshToLabels.mean);
+  EXPECT_GT(r.labelsToMesh.max, 19.0);
+}
+
+TEST(Fidelity, MickeyVoxelMesh) {
+  const std::string path = femesher::testing::dataFile("mickey.nrrd");
+  auto lv = readLabelMap(path);
+  if (!lv.isOk()) {
+    if (femesher::testing::inCI()) FAIL() << lv.status().message();
+    GTEST_SKIP() << lv.status().message();
+  }
+  const LabelVolume& v = lv.value();
+  const TetMesh m = voxelMesh(v);
+  const FidelityReport r = computeFidelity(v, m);
+  EXPECT_FALSE(r.materials.empty());
+  for (const auto& f : r.materials) {
+    EXPECT_DOUBLE_EQ(f.dice, 1.0) << f.label;
+    EXPECT_NEAR(f.volumeError, 0, 1e-9) << f.label;
+  }
+  EXPECT_TRUE(r.missingLabels.empty());
+  EXPECT_LT(r.meshToLabels.max, 1e-6);
+  EXPECT_LT(r.labelsToMesh.max, 1e-6);
+}
+
+TEST(Fidelity, LargeVolumeBlockMesh) {
+  // 8M voxels, 750k tets (blocks of 4^3 voxels): prints the time; Dice must be exactly 1.
+  LabelVolume v = obliqueVolume(200, 200, 200);
+  for (int k = 0; k < 200; ++k)
+    for (int j = 0; j < 200; ++j)
+      for (int i = 0; i < 200; ++i) {
+        const int bi = i / 4, bj = j / 4, bk = k / 4;
+        const double r2 = (bi - 25.0) * (bi - 25.0) + (bj - 25.0) * (bj - 25.0) + (bk - 25.0) * (bk - 25.0);
+        v.labels[v.index(i, j, k)] = r2 < 100 ? 2 : (r2 < 400 ? 1 : 0);
+      }
+  const TetMesh m = voxelMesh(v, {0, 0, 0}, {}, 4);
+  RunContext ctx;
+  ctx.setThreads(2);
+  const auto t0 = std::chrono::steady_clock::now();
+  const FidelityReport r = computeFidelity(v, m, &ctx);
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("fidelity: %zu voxels, %zu tets, %zu+%zu distance samples: %.2f s (2 threads)\n",
+              v.voxelCount(), m.tets.size(), r.meshToLabels.samples, r.labelsToMesh.samples, s);
+  ASSERT_EQ(r.materials.size(), 2u);
+  for (const auto& f : r.materials) EXPECT_DOUBLE_EQ(f.dice, 1.0);
+  EXPECT_LT(r.meshToLabels.max, 1e-6);
+  EXPECT_LT(r.labelsToMesh.max, 1e-6);
+}
+
+TEST(Fidelity, RejectsInconsistentInput) {
+  LabelVolume v = threeLabels();
+  TetMesh m = voxelMesh(v);
+  m.tetLabels.pop_back();
+  EXPECT_THROW(computeFidelity(v, m), Error);
+  m = voxelMesh(v);
+  v.labels.pop_back();
+  EXPECT_THROW(computeFidelity(v, m), Error);
+}
