@@ -44,7 +44,7 @@ struct MeshingParameters {
 
   // --- Junctions and particle system ---------------------------------------------------------
   /// Particle-system iterations (0 = use the Poisson-disk samples as they are).
-  int particleIterations = 30;
+  int particleIterations = 15;
   /// Surface mesher: "delaunay" (restricted Delaunay of the particles) or "ldt" (local Delaunay
   /// triangulation in tangent space, natural-neighbour 1-rings).
   std::string surfaceMesher = "delaunay";

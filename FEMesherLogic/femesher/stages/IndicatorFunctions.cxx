@@ -125,25 +125,45 @@ float IndicatorField::value(int m, int i, int j, int k) const {
   return b.f[size_t(x) + size_t(b.dims[0]) * (size_t(y) + size_t(b.dims[1]) * size_t(z))];
 }
 
+void IndicatorField::corners(int m, int i, int j, int k, double out[8]) const {
+  const Box& b = boxes_[m];
+  const int x = i - b.lo[0], y = j - b.lo[1], z = k - b.lo[2];
+  if (x >= 0 && y >= 0 && z >= 0 && x + 1 < b.dims[0] && y + 1 < b.dims[1] && z + 1 < b.dims[2]) {
+    const size_t sy = size_t(b.dims[0]), sz = size_t(b.dims[0]) * size_t(b.dims[1]);
+    const float* p = &b.f[size_t(x) + sy * size_t(y) + sz * size_t(z)];
+    out[0] = p[0];
+    out[1] = p[1];
+    out[2] = p[sy];
+    out[3] = p[sy + 1];
+    out[4] = p[sz];
+    out[5] = p[sz + 1];
+    out[6] = p[sz + sy];
+    out[7] = p[sz + sy + 1];
+    return;
+  }
+  for (int c = 0; c < 8; ++c) out[c] = value(m, i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
+}
+
 double IndicatorField::eval(int m, const Vec3& l) const {
   const int i = int(std::floor(l[0])), j = int(std::floor(l[1])), k = int(std::floor(l[2]));
   const double u = l[0] - i, v = l[1] - j, w = l[2] - k;
-  double r = 0;
-  for (int c = 0; c < 8; ++c) {
-    const int di = c & 1, dj = (c >> 1) & 1, dk = (c >> 2) & 1;
-    const double wt = (di ? u : 1 - u) * (dj ? v : 1 - v) * (dk ? w : 1 - w);
-    if (wt != 0) r += wt * value(m, i + di, j + dj, k + dk);
-  }
-  return r;
+  double f[8];
+  corners(m, i, j, k, f);
+  const double x00 = f[0] + u * (f[1] - f[0]), x10 = f[2] + u * (f[3] - f[2]);
+  const double x01 = f[4] + u * (f[5] - f[4]), x11 = f[6] + u * (f[7] - f[6]);
+  const double y0 = x00 + v * (x10 - x00), y1 = x01 + v * (x11 - x01);
+  return y0 + w * (y1 - y0);
 }
 
 Vec3 IndicatorField::gradient(int m, const Vec3& l) const {
   const int i = int(std::floor(l[0])), j = int(std::floor(l[1])), k = int(std::floor(l[2]));
   const double u = l[0] - i, v = l[1] - j, w = l[2] - k;
   Vec3 g{0, 0, 0};
+  double fc[8];
+  corners(m, i, j, k, fc);
   for (int c = 0; c < 8; ++c) {
     const int di = c & 1, dj = (c >> 1) & 1, dk = (c >> 2) & 1;
-    const double f = value(m, i + di, j + dj, k + dk);
+    const double f = fc[c];
     const double wu = di ? u : 1 - u, wv = dj ? v : 1 - v, ww = dk ? w : 1 - w;
     g[0] += (di ? 1 : -1) * wv * ww * f;
     g[1] += (dj ? 1 : -1) * wu * ww * f;

@@ -39,6 +39,8 @@ class IndicatorField {
 
   /// f_m at a voxel centre (local index); far negative outside m's box.
   float value(int m, int i, int j, int k) const;
+  /// f_m at the 8 voxel centres of the cell whose lowest corner is (i,j,k), x fastest.
+  void corners(int m, int i, int j, int k, double out[8]) const;
   /// Trilinear f_m at a continuous local index.
   double eval(int m, const Vec3& l) const;
   /// Gradient of the trilinear f_m (per local index unit).
