@@ -30,6 +30,12 @@ QString number(double v) {
   return QString::number(v, 'f', 2);
 }
 
+size_t maxCountOf(const femesher::Histogram& h) {
+  size_t m = 1;
+  for (size_t c : h.counts) m = std::max(m, c);
+  return m;
+}
+
 QIcon swatch(const std::array<double, 3>& c) {
   QPixmap pm(12, 12);
   pm.fill(QColor::fromRgbF(c[0], c[1], c[2]));
@@ -91,7 +97,8 @@ void qFEMesherHistogramPlot::paintEvent(QPaintEvent*) {
   if (!hasData_) return;
 
   const auto& h = metric_.histogram;
-  const QRect plot(34, 6 + 2 * lineH + 4, r.width() - 34 - 10, r.height() - (6 + 2 * lineH + 4) - lineH - 6);
+  const int left = fm.horizontalAdvance(QString::number(maxCountOf(metric_.histogram))) + 10;
+  const QRect plot(left, 6 + 2 * lineH + 4, r.width() - left - 10, r.height() - (6 + 2 * lineH + 4) - lineH - 6);
   if (plot.width() < 20 || plot.height() < 20) return;
   size_t maxCount = 1;
   for (size_t c : h.counts) maxCount = std::max(maxCount, c);
@@ -116,9 +123,9 @@ void qFEMesherHistogramPlot::paintEvent(QPaintEvent*) {
   p.setPen(palette().text().color());
   p.drawLine(plot.bottomLeft(), plot.bottomRight());
   p.drawLine(plot.bottomLeft(), plot.topLeft());
-  p.drawText(QRect(plot.left() - 30, plot.top() - lineH / 2, 27, lineH),
+  p.drawText(QRect(0, plot.top() - lineH / 2, plot.left() - 3, lineH),
              Qt::AlignRight | Qt::AlignVCenter, QString::number(maxCount));
-  p.drawText(QRect(plot.left() - 30, plot.bottom() - lineH / 2, 27, lineH),
+  p.drawText(QRect(0, plot.bottom() - lineH / 2, plot.left() - 3, lineH),
              Qt::AlignRight | Qt::AlignVCenter, QStringLiteral("0"));
   p.drawText(QRect(plot.left() - 20, plot.bottom() + 2, 80, lineH), Qt::AlignLeft, number(lo));
   p.drawText(QRect(plot.right() - 80, plot.bottom() + 2, 80, lineH), Qt::AlignRight, number(hi));
@@ -128,8 +135,10 @@ void qFEMesherHistogramPlot::paintEvent(QPaintEvent*) {
     QPen pen(QColor(200, 0, 0), 2, Qt::DashLine);
     p.setPen(pen);
     p.drawLine(QPointF(x, plot.top()), QPointF(x, plot.bottom()));
-    p.drawText(QRectF(x + 3, plot.top(), 60, lineH), Qt::AlignLeft,
-               tr("bad") + (metric_.badAbove ? QStringLiteral(" \u2192") : QStringLiteral(" \u2190")));
+    if (metric_.badAbove)
+      p.drawText(QRectF(x + 3, plot.top(), 60, lineH), Qt::AlignLeft, tr("bad \u2192"));
+    else
+      p.drawText(QRectF(x - 63, plot.top(), 60, lineH), Qt::AlignRight, tr("\u2190 bad"));
   }
 }
 
@@ -149,18 +158,23 @@ qFEMesherQualityHistogramWidget::qFEMesherQualityHistogramWidget(QWidget* parent
   top->addWidget(summary_, 1);
   layout->addLayout(top);
 
+  auto* body = new QHBoxLayout;
   auto* grid = new QGridLayout;
   for (int i = 0; i < 4; ++i) {
     plots_[i] = new qFEMesherHistogramPlot(this);
     plots_[i]->setMetric(tr(kMetricTitles[i]), nullptr);
     plots_[i]->setObjectName(QString::fromLatin1(kMetricNames[i]));
-    grid->addWidget(plots_[i], 0, i);
+    grid->addWidget(plots_[i], i / 2, i % 2);
   }
-  layout->addLayout(grid, 3);
+  body->addLayout(grid, 3);
+  auto* fidelityColumn = new QVBoxLayout;
+  auto* fidelityTitle = new QLabel(tr("<b>Fidelity to the labels</b>"), this);
+  fidelityColumn->addWidget(fidelityTitle);
+  body->addLayout(fidelityColumn, 2);
+  layout->addLayout(body, 1);
 
   distances_ = new QLabel(this);
   distances_->setWordWrap(true);
-  layout->addWidget(distances_);
   fidelity_ = new QTableWidget(0, 6, this);
   fidelity_->setHorizontalHeaderLabels(
       {tr("Label"), tr("Name"), tr("Tets"), tr("Dice"), tr("Volume error"), tr("Status")});
@@ -169,7 +183,8 @@ qFEMesherQualityHistogramWidget::qFEMesherQualityHistogramWidget(QWidget* parent
   fidelity_->horizontalHeader()->setStretchLastSection(true);
   fidelity_->setToolTip(tr("Agreement of the mesh with the input labels. Dice 1 = identical; "
                            "volume error = (mesh - voxels) / voxels."));
-  layout->addWidget(fidelity_, 2);
+  fidelityColumn->addWidget(fidelity_, 1);
+  fidelityColumn->addWidget(distances_);
   connect(combo_, QOverload<int>::of(&QComboBox::currentIndexChanged), this,
           &qFEMesherQualityHistogramWidget::updatePlots);
 }

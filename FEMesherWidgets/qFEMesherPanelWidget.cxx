@@ -1,0 +1,806 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include "qFEMesherPanelWidget.h"
+
+#include "qFEMesherRunner.h"
+
+#include <femesher/io/AtomicFile.h>
+#include <femesher/io/LabelMapIO.h>
+#include <femesher/io/MeshIO.h>
+
+#include <QCheckBox>
+#include <QComboBox>
+#include <QDoubleSpinBox>
+#include <QDoubleValidator>
+#include <QFileDialog>
+#include <QFileInfo>
+#include <QFormLayout>
+#include <QGridLayout>
+#include <QGroupBox>
+#include <QHBoxLayout>
+#include <QHeaderView>
+#include <QLabel>
+#include <QLineEdit>
+#include <QListWidget>
+#include <QPixmap>
+#include <QProgressBar>
+#include <QPushButton>
+#include <QTableWidget>
+#include <QVBoxLayout>
+
+#include <cmath>
+#include <fstream>
+#include <set>
+
+namespace {
+
+/// The parameters shown in plain words at the top; all others go to "Advanced".
+const char* const kKeyParameters[] = {"target_edge_length", "edge_length_factor",
+                                      "smoothing_sigma", "min_voxels"};
+
+bool isKeyParameter(const std::string& key) {
+  for (const char* k : kKeyParameters)
+    if (key == k) return true;
+  return false;
+}
+
+QString unitSuffix(const std::string& unit) {
+  if (unit.empty()) return {};
+  if (unit == "mm^3") return QStringLiteral(" mm\u00b3");
+  if (unit == "degrees") return QStringLiteral("\u00b0");
+  return QStringLiteral(" ") + QString::fromStdString(unit);
+}
+
+QString describe(const femesher::ParameterDescriptor& d) {
+  QString tip = QStringLiteral("<b>%1</b> (<tt>%2</tt>)<br>%3")
+                    .arg(QString::fromStdString(d.label), QString::fromStdString(d.key),
+                         QString::fromStdString(d.help).toHtmlEscaped());
+  if (d.type == "double" || d.type == "int")
+    tip += QStringLiteral("<br>Range %1 .. %2 %3, default %4")
+               .arg(d.minimum).arg(d.maximum).arg(QString::fromStdString(d.unit),
+                                                  QString::fromStdString(d.defaultValue));
+  return tip;
+}
+
+QString extensionTitle(const std::string& ext) {
+  if (ext == ".vtu") return QObject::tr("VTU (ParaView, Slicer)");
+  if (ext == ".inp") return QObject::tr("INP (Abaqus, CalculiX)");
+  if (ext == ".msh") return QObject::tr("MSH (Gmsh)");
+  if (ext == ".mesh") return QObject::tr("MESH (Medit)");
+  if (ext == ".feb") return QObject::tr("FEB (FEBio)");
+  if (ext == ".stl") return QObject::tr("STL (surfaces)");
+  return QString::fromStdString(ext).mid(1).toUpper();
+}
+
+QPixmap colorSwatch(const std::array<double, 3>& c) {
+  QPixmap pm(28, 14);
+  pm.fill(QColor::fromRgbF(c[0], c[1], c[2]));
+  return pm;
+}
+
+}  // namespace
+
+qFEMesherPanelWidget::qFEMesherPanelWidget(QWidget* parent) : QWidget(parent) {
+  qRegisterMetaType<std::shared_ptr<const femesher::LabelVolume>>();
+  runner_ = new qFEMesherRunner(this);
+  auto* layout = new QVBoxLayout(this);
+  layout->setContentsMargins(6, 6, 6, 6);
+
+  // --- input --------------------------------------------------------------------------------------
+  fileRow_ = new QWidget(this);
+  auto* fileLayout = new QHBoxLayout(fileRow_);
+  fileLayout->setContentsMargins(0, 0, 0, 0);
+  fileLayout->addWidget(new QLabel(tr("Segmentation:"), fileRow_));
+  fileEdit_ = new QLineEdit(fileRow_);
+  fileEdit_->setPlaceholderText(tr("label map: .nrrd .nii.gz .mha .seg.nrrd ..."));
+  fileEdit_->setToolTip(tr("A labelled volume: every voxel holds the integer id of its material"));
+  fileLayout->addWidget(fileEdit_, 1);
+  auto* browse = new QPushButton(tr("Browse\u2026"), fileRow_);
+  fileLayout->addWidget(browse);
+  layout->addWidget(fileRow_);
+  connect(browse, &QPushButton::clicked, this, &qFEMesherPanelWidget::browse);
+  connect(fileEdit_, &QLineEdit::returnPressed, this, [this] { openFile(fileEdit_->text()); });
+  volumeInfo_ = new QLabel(tr("No segmentation loaded."), this);
+  volumeInfo_->setWordWrap(true);
+  layout->addWidget(volumeInfo_);
+
+  // --- materials ----------------------------------------------------------------------------------
+  auto* matBox = new QGroupBox(tr("Materials"), this);
+  auto* matLayout = new QVBoxLayout(matBox);
+  table_ = new QTableWidget(0, ColumnCount, matBox);
+  table_->setHorizontalHeaderLabels({tr("Mesh"), tr("Label"), tr("Name"), tr("Colour"),
+                                     tr("Voxels"), tr("Size \u00d7"),
+                                     tr("E (MPa)"), tr("\u03bd")});
+  table_->verticalHeader()->setVisible(false);
+  table_->setSelectionBehavior(QAbstractItemView::SelectRows);
+  table_->horizontalHeader()->setSectionResizeMode(QHeaderView::Fixed);
+  table_->horizontalHeader()->setSectionResizeMode(ColName, QHeaderView::Stretch);
+  table_->horizontalHeader()->setMinimumSectionSize(24);
+  const int widths[ColumnCount] = {40, 44, 90, 48, 64, 56, 78, 64};
+  for (int c = 0; c < ColumnCount; ++c)
+    if (c != ColName) table_->setColumnWidth(c, widths[c]);
+  table_->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
+  table_->horizontalHeaderItem(ColMesh)->setToolTip(
+      tr("Unticked materials are turned into background before meshing (they leave a cavity)"));
+  table_->horizontalHeaderItem(ColScale)->setToolTip(
+      tr("Relative element size for this material. Recorded in the panel only: the pipeline "
+         "does not have per-material sizing yet, so it does not change the mesh."));
+  table_->horizontalHeaderItem(ColE)->setToolTip(
+      tr("Young's modulus written to Abaqus/CalculiX (.inp) and FEBio (.feb) exports"));
+  table_->horizontalHeaderItem(ColNu)->setToolTip(tr("Poisson ratio written to .inp and .feb exports"));
+  table_->setMinimumHeight(120);
+  table_->setMaximumHeight(230);
+  matLayout->addWidget(table_);
+  layout->addWidget(matBox);
+
+  // --- parameters ---------------------------------------------------------------------------------
+  auto* paramBox = new QGroupBox(tr("Mesh size"), this);
+  auto* form = new QFormLayout(paramBox);
+  preset_ = new QComboBox(paramBox);
+  preset_->addItem(tr("Coarse (fast, large elements)"), QStringLiteral("coarse"));
+  preset_->addItem(tr("Default"), QStringLiteral("default"));
+  preset_->addItem(tr("Fine (small elements, slower)"), QStringLiteral("fine"));
+  preset_->addItem(tr("Custom"), QStringLiteral("custom"));
+  preset_->setCurrentIndex(1);
+  preset_->setToolTip(tr("Ready-made settings; changing any value below switches to Custom"));
+  form->addRow(tr("Preset:"), preset_);
+  connect(preset_, QOverload<int>::of(&QComboBox::activated), this,
+          &qFEMesherPanelWidget::onPresetChosen);
+  layout->addWidget(paramBox);
+
+  advanced_ = new QGroupBox(tr("Advanced"), this);
+  advanced_->setCheckable(true);
+  advanced_->setChecked(false);
+  advanced_->setToolTip(tr("Particle system, TetGen quality bounds, threads, seed, default material"));
+  auto* advLayout = new QVBoxLayout(advanced_);
+  auto* advContent = new QWidget(advanced_);
+  auto* advForm = new QFormLayout(advContent);
+  advForm->setContentsMargins(0, 0, 0, 0);
+  advLayout->addWidget(advContent);
+  advContent->setVisible(false);
+  connect(advanced_, &QGroupBox::toggled, advContent, &QWidget::setVisible);
+  layout->addWidget(advanced_);
+
+  // Editors from the descriptors: key parameters under the preset, the others in Advanced.
+  for (const auto& d : femesher::parameterDescriptors()) {
+    QWidget* editor = nullptr;
+    const QString key = QString::fromStdString(d.key);
+    QWidget* owner = isKeyParameter(d.key) ? paramBox : advContent;
+    if (d.type == "bool") {
+      auto* cb = new QCheckBox(owner);
+      connect(cb, &QCheckBox::toggled, this, &qFEMesherPanelWidget::onParameterEdited);
+      editor = cb;
+    } else if (d.type == "choice") {
+      auto* combo = new QComboBox(owner);
+      for (const auto& c : d.choices) combo->addItem(QString::fromStdString(c));
+      connect(combo, QOverload<int>::of(&QComboBox::currentIndexChanged), this,
+              &qFEMesherPanelWidget::onParameterEdited);
+      editor = combo;
+    } else if (d.defaultValue.find('e') != std::string::npos) {
+      // Tiny values (density 1e-9): plain text with a validator.
+      auto* edit = new QLineEdit(owner);
+      edit->setValidator(new QDoubleValidator(d.minimum, d.maximum, 15, edit));
+      connect(edit, &QLineEdit::editingFinished, this, &qFEMesherPanelWidget::onParameterEdited);
+      editor = edit;
+    } else {
+      auto* spin = new QDoubleSpinBox(owner);
+      spin->setDecimals(d.type == "int" ? 0 : (d.unit == "mm" || d.unit == "voxels" ? 2 : 3));
+      spin->setRange(d.minimum, std::min(d.maximum, d.type == "int" ? 1e12 : 1e9));
+      spin->setSingleStep(d.type == "int" ? 1 : (d.maximum <= 20 ? 0.1 : 0.5));
+      spin->setSuffix(unitSuffix(d.unit));
+      spin->setKeyboardTracking(false);
+      if (d.key == "target_edge_length") spin->setSpecialValueText(tr("Automatic"));
+      connect(spin, QOverload<double>::of(&QDoubleSpinBox::valueChanged), this,
+              &qFEMesherPanelWidget::onParameterEdited);
+      editor = spin;
+    }
+    editor->setObjectName(key);
+    editor->setToolTip(describe(d));
+    editors_.insert(key, editor);
+    QString label = QString::fromStdString(d.label);
+    if (d.key == "target_edge_length") label = tr("Element size");
+    if (d.key == "edge_length_factor") label = tr("Automatic size (\u00d7 voxel)");
+    if (d.key == "smoothing_sigma") label = tr("Surface smoothing");
+    if (d.key == "min_voxels") label = tr("Drop labels smaller than");
+    auto* labelWidget = new QLabel(label + QStringLiteral(":"), owner);
+    labelWidget->setToolTip(describe(d));
+    if (owner == paramBox) form->addRow(labelWidget, editor);
+    else advForm->addRow(labelWidget, editor);
+  }
+  sizeHint_ = new QLabel(paramBox);
+  sizeHint_->setWordWrap(true);
+  form->addRow(sizeHint_);
+  auto* paramButtons = new QHBoxLayout;
+  saveParams_ = new QPushButton(tr("Save parameters\u2026"), paramBox);
+  saveParams_->setToolTip(tr("Save as JSON; the CLI reads it with: femesher mesh IN -o OUT --parameters FILE"));
+  loadParams_ = new QPushButton(tr("Load parameters\u2026"), paramBox);
+  paramButtons->addWidget(saveParams_);
+  paramButtons->addWidget(loadParams_);
+  form->addRow(paramButtons);
+  connect(saveParams_, &QPushButton::clicked, this, &qFEMesherPanelWidget::saveParametersClicked);
+  connect(loadParams_, &QPushButton::clicked, this, &qFEMesherPanelWidget::loadParametersClicked);
+
+  // --- run ------------------------------------------------------------------------------------------
+  auto* runRow = new QHBoxLayout;
+  runButton_ = new QPushButton(tr("Run"), this);
+  runButton_->setToolTip(tr("Mesh the ticked materials with the settings above"));
+  QFont bold = runButton_->font();
+  bold.setBold(true);
+  runButton_->setFont(bold);
+  cancelButton_ = new QPushButton(tr("Cancel"), this);
+  cancelButton_->setToolTip(tr("Stop the run (within a second); nothing is written"));
+  runRow->addWidget(runButton_, 2);
+  runRow->addWidget(cancelButton_, 1);
+  layout->addLayout(runRow);
+  progress_ = new QProgressBar(this);
+  progress_->setRange(0, 1000);
+  progress_->setValue(0);
+  progress_->setTextVisible(true);
+  progress_->setFormat(tr("Idle"));
+  layout->addWidget(progress_);
+  message_ = new QLabel(this);
+  message_->setWordWrap(true);
+  message_->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  layout->addWidget(message_);
+  connect(runButton_, &QPushButton::clicked, this, [this] { run(); });
+  connect(cancelButton_, &QPushButton::clicked, this, &qFEMesherPanelWidget::cancel);
+
+  auto* warnBox = new QGroupBox(tr("Warnings"), this);
+  auto* warnLayout = new QVBoxLayout(warnBox);
+  warnings_ = new QListWidget(warnBox);
+  warnings_->setWordWrap(true);
+  warnings_->setMinimumHeight(50);
+  warnings_->setMaximumHeight(110);
+  warnLayout->addWidget(warnings_);
+  layout->addWidget(warnBox);
+  layout->addStretch(1);
+
+  // --- export ---------------------------------------------------------------------------------------
+  auto* exportBox = new QGroupBox(tr("Export mesh"), this);
+  auto* exportGrid = new QGridLayout(exportBox);
+  int i = 0;
+  for (const auto& ext : femesher::supportedMeshExtensions()) {
+    auto* b = new QPushButton(extensionTitle(ext), exportBox);
+    b->setProperty("extension", QString::fromStdString(ext));
+    b->setObjectName(QStringLiteral("export") + QString::fromStdString(ext));
+    b->setToolTip(tr("Save the mesh as %1").arg(QString::fromStdString(ext)));
+    exportGrid->addWidget(b, i / 3, i % 3);
+    exportButtons_.insert(QString::fromStdString(ext), b);
+    connect(b, &QPushButton::clicked, this, &qFEMesherPanelWidget::exportClicked);
+    ++i;
+  }
+  layout->addWidget(exportBox);
+
+  connect(runner_, &qFEMesherRunner::progressChanged, this, &qFEMesherPanelWidget::onProgress);
+  connect(runner_, &qFEMesherRunner::logMessage, this, &qFEMesherPanelWidget::onLog);
+  connect(runner_, &qFEMesherRunner::previewAvailable, this,
+          &qFEMesherPanelWidget::previewAvailable);
+  connect(runner_, &qFEMesherRunner::succeeded, this, &qFEMesherPanelWidget::onSucceeded);
+  connect(runner_, &qFEMesherRunner::failed, this, &qFEMesherPanelWidget::onFailed);
+  connect(runner_, &qFEMesherRunner::canceled, this, &qFEMesherPanelWidget::onCanceled);
+
+  setParameters(femesher::MeshingParameters{});
+  updateButtons();
+}
+
+qFEMesherPanelWidget::~qFEMesherPanelWidget() = default;
+
+// --- input ----------------------------------------------------------------------------------------
+
+void qFEMesherPanelWidget::setFileInputVisible(bool visible) { fileRow_->setVisible(visible); }
+
+void qFEMesherPanelWidget::browse() {
+  const QString path = QFileDialog::getOpenFileName(
+      this, tr("Open segmentation"), QFileInfo(inputPath_).absolutePath(),
+      tr("Label maps (*.nrrd *.nhdr *.nii *.nii.gz *.mha *.mhd *.seg.nrrd);;All files (*)"));
+  if (!path.isEmpty()) openFile(path);
+}
+
+bool qFEMesherPanelWidget::openFile(const QString& path) {
+  if (isRunning()) {
+    showError(tr("A run is going on: cancel it before opening another file."));
+    return false;
+  }
+  auto r = femesher::readLabelMap(path.toStdString());
+  if (!r) {
+    showError(QString::fromStdString(r.status().message()));
+    return false;
+  }
+  inputPath_ = path;
+  fileEdit_->setText(path);
+  setVolume(std::make_shared<const femesher::LabelVolume>(std::move(r).value()),
+            QFileInfo(path).fileName());
+  return true;
+}
+
+void qFEMesherPanelWidget::setVolume(std::shared_ptr<const femesher::LabelVolume> volume,
+                                     const QString& displayName) {
+  volume_ = std::move(volume);
+  result_.reset();
+  warnings_->clear();
+  progress_->setValue(0);
+  progress_->setFormat(tr("Idle"));
+  state_ = QStringLiteral("idle");
+  if (volume_) {
+    const auto& v = *volume_;
+    volumeInfo_->setText(tr("<b>%1</b>: %2 \u00d7 %3 \u00d7 %4 voxels of %5 \u00d7 %6 \u00d7 %7 mm, "
+                            "%8 materials")
+                             .arg(displayName.toHtmlEscaped())
+                             .arg(v.dims[0]).arg(v.dims[1]).arg(v.dims[2])
+                             .arg(v.spacing[0], 0, 'g', 3).arg(v.spacing[1], 0, 'g', 3)
+                             .arg(v.spacing[2], 0, 'g', 3).arg(v.materials.size()));
+  } else {
+    volumeInfo_->setText(tr("No segmentation loaded."));
+  }
+  fillMaterialTable();
+  updateSizeHint();
+  showInfo(volume_ ? tr("Loaded %1. Choose the materials and the size, then press Run.")
+                         .arg(displayName)
+                   : QString());
+  updateButtons();
+  if (volume_) emit volumeLoaded(volume_);
+}
+
+void qFEMesherPanelWidget::fillMaterialTable() {
+  const femesher::MeshingParameters p = parameters();
+  table_->setRowCount(0);
+  if (!volume_) return;
+  const femesher::LabelMapSummary summary = femesher::summarizeLabelMap(*volume_);
+  const bool noBackground = volume_->hasNoBackground();
+  int row = 0;
+  for (const auto& s : summary.labels) {
+    if (s.id == 0 && !noBackground) continue;  // background is not meshed
+    table_->insertRow(row);
+    const femesher::Material* m = femesher::findMaterial(volume_->materials, s.id);
+    auto* include = new QTableWidgetItem;
+    include->setFlags(Qt::ItemIsUserCheckable | Qt::ItemIsEnabled | Qt::ItemIsSelectable);
+    include->setCheckState(Qt::Checked);
+    include->setData(Qt::UserRole, s.id);
+    table_->setItem(row, ColMesh, include);
+    auto* id = new QTableWidgetItem(QString::number(s.id));
+    id->setFlags(Qt::ItemIsEnabled | Qt::ItemIsSelectable);
+    table_->setItem(row, ColId, id);
+    auto* name = new QTableWidgetItem(
+        QString::fromStdString(m ? m->name : (s.name.empty() ? "label " + std::to_string(s.id) : s.name)));
+    name->setFlags(Qt::ItemIsEnabled | Qt::ItemIsSelectable);
+    table_->setItem(row, ColName, name);
+    const auto color = m ? m->color : femesher::defaultLabelColor(s.id);
+    auto* colorItem = new QTableWidgetItem;
+    colorItem->setData(Qt::DecorationRole, colorSwatch(color));
+    colorItem->setData(Qt::UserRole, QColor::fromRgbF(color[0], color[1], color[2]));
+    colorItem->setFlags(Qt::ItemIsEnabled);
+    table_->setItem(row, ColColor, colorItem);
+    auto* voxels = new QTableWidgetItem;
+    voxels->setData(Qt::DisplayRole, qulonglong(s.voxels));
+    voxels->setFlags(Qt::ItemIsEnabled | Qt::ItemIsSelectable);
+    voxels->setTextAlignment(Qt::AlignRight | Qt::AlignVCenter);
+    if (int64_t(s.voxels) < p.minVoxels) {
+      voxels->setForeground(QColor(190, 30, 30));
+      voxels->setToolTip(tr("Fewer than the minimum voxels: this label will be dropped"));
+    }
+    else {
+      voxels->setToolTip(tr("%1 mm\u00b3 in %2 connected piece(s)")
+                             .arg(s.volumeMm3, 0, 'f', 1).arg(s.components));
+    }
+    table_->setItem(row, ColVoxels, voxels);
+    name->setToolTip(tr("Label %1: %2 voxels, %3 mm\u00b3").arg(s.id).arg(qulonglong(s.voxels))
+                         .arg(s.volumeMm3, 0, 'f', 1));
+    auto* scale = new QDoubleSpinBox(table_);
+    scale->setRange(0.1, 10.0);
+    scale->setSingleStep(0.1);
+    scale->setValue(1.0);
+    scale->setFrame(false);
+    scale->setToolTip(table_->horizontalHeaderItem(ColScale)->toolTip());
+    table_->setCellWidget(row, ColScale, scale);
+    auto it = p.materialProperties.find(s.id);
+    auto* e = new QDoubleSpinBox(table_);
+    e->setRange(0.0, 1e7);
+    e->setDecimals(1);
+    e->setSpecialValueText(tr("default"));
+    e->setValue(it != p.materialProperties.end() ? it->second.youngsModulus : 0.0);
+    e->setFrame(false);
+    e->setToolTip(tr("Young's modulus in MPa; 'default' uses the default material (Advanced)"));
+    table_->setCellWidget(row, ColE, e);
+    auto* nu = new QDoubleSpinBox(table_);
+    nu->setRange(-1.0, 0.499);
+    nu->setDecimals(3);
+    nu->setSingleStep(0.01);
+    nu->setSpecialValueText(tr("default"));
+    nu->setValue(it != p.materialProperties.end() ? it->second.poissonRatio : -1.0);
+    nu->setFrame(false);
+    nu->setToolTip(tr("Poisson ratio; 'default' uses the default material (Advanced)"));
+    table_->setCellWidget(row, ColNu, nu);
+    ++row;
+  }
+}
+
+int qFEMesherPanelWidget::materialRow(int32_t id) const {
+  for (int r = 0; r < table_->rowCount(); ++r)
+    if (table_->item(r, ColMesh)->data(Qt::UserRole).toInt() == id) return r;
+  return -1;
+}
+
+void qFEMesherPanelWidget::setMaterialIncluded(int32_t id, bool included) {
+  const int r = materialRow(id);
+  if (r >= 0) table_->item(r, ColMesh)->setCheckState(included ? Qt::Checked : Qt::Unchecked);
+}
+
+bool qFEMesherPanelWidget::isMaterialIncluded(int32_t id) const {
+  const int r = materialRow(id);
+  return r >= 0 && table_->item(r, ColMesh)->checkState() == Qt::Checked;
+}
+
+double qFEMesherPanelWidget::materialSizeScale(int32_t id) const {
+  const int r = materialRow(id);
+  if (r < 0) return 1.0;
+  return static_cast<QDoubleSpinBox*>(table_->cellWidget(r, ColScale))->value();
+}
+
+std::shared_ptr<const femesher::LabelVolume> qFEMesherPanelWidget::volumeToMesh() const {
+  if (!volume_) return nullptr;
+  std::set<int32_t> excluded;
+  for (int r = 0; r < table_->rowCount(); ++r)
+    if (table_->item(r, ColMesh)->checkState() != Qt::Checked)
+      excluded.insert(table_->item(r, ColMesh)->data(Qt::UserRole).toInt());
+  if (excluded.empty()) return volume_;
+  auto copy = std::make_shared<femesher::LabelVolume>(*volume_);
+  for (int32_t& l : copy->labels)
+    if (excluded.count(l)) l = 0;
+  copy->materials.erase(std::remove_if(copy->materials.begin(), copy->materials.end(),
+                                       [&](const femesher::Material& m) { return excluded.count(m.id) > 0; }),
+                        copy->materials.end());
+  return copy;
+}
+
+// --- parameters -----------------------------------------------------------------------------------
+
+void qFEMesherPanelWidget::setEditorValue(const std::string& key, const std::string& value) {
+  QWidget* w = editors_.value(QString::fromStdString(key), nullptr);
+  if (!w) return;
+  const QString v = QString::fromStdString(value);
+  if (auto* cb = qobject_cast<QCheckBox*>(w)) cb->setChecked(v == "true" || v == "1");
+  else if (auto* combo = qobject_cast<QComboBox*>(w)) combo->setCurrentText(v);
+  else if (auto* spin = qobject_cast<QDoubleSpinBox*>(w)) spin->setValue(v.toDouble());
+  else if (auto* edit = qobject_cast<QLineEdit*>(w)) edit->setText(v);
+}
+
+std::string qFEMesherPanelWidget::editorValue(const std::string& key) const {
+  QWidget* w = editors_.value(QString::fromStdString(key), nullptr);
+  if (!w) return {};
+  if (auto* cb = qobject_cast<QCheckBox*>(w)) return cb->isChecked() ? "true" : "false";
+  if (auto* combo = qobject_cast<QComboBox*>(w)) return combo->currentText().toStdString();
+  if (auto* spin = qobject_cast<QDoubleSpinBox*>(w))
+    return QString::number(spin->value(), 'g', 12).toStdString();
+  if (auto* edit = qobject_cast<QLineEdit*>(w)) return edit->text().trimmed().toStdString();
+  return {};
+}
+
+femesher::MeshingParameters qFEMesherPanelWidget::parameters() const {
+  femesher::MeshingParameters p = hidden_;
+  for (const auto& d : femesher::parameterDescriptors()) {
+    const std::string v = editorValue(d.key);
+    if (!v.empty()) femesher::setParameter(p, d.key, v);  // invalid text keeps the old value
+  }
+  p.materialProperties.clear();
+  for (int r = 0; r < table_->rowCount(); ++r) {
+    const int32_t id = table_->item(r, ColMesh)->data(Qt::UserRole).toInt();
+    const double e = static_cast<QDoubleSpinBox*>(table_->cellWidget(r, ColE))->value();
+    const double nu = static_cast<QDoubleSpinBox*>(table_->cellWidget(r, ColNu))->value();
+    if (e <= 0 && nu <= -1) continue;
+    femesher::ElasticProperties props = p.defaultMaterial;
+    if (e > 0) props.youngsModulus = e;
+    if (nu > -1) props.poissonRatio = nu;
+    p.materialProperties[id] = props;
+  }
+  // Materials not in the table (e.g. from a loaded parameter file) are kept.
+  for (const auto& [id, props] : hidden_.materialProperties)
+    if (materialRow(id) < 0) p.materialProperties[id] = props;
+  return p;
+}
+
+void qFEMesherPanelWidget::setParameters(const femesher::MeshingParameters& params) {
+  updating_ = true;
+  hidden_ = params;
+  for (const auto& d : femesher::parameterDescriptors())
+    setEditorValue(d.key, femesher::getParameter(params, d.key));
+  for (int r = 0; r < table_->rowCount(); ++r) {
+    const int32_t id = table_->item(r, ColMesh)->data(Qt::UserRole).toInt();
+    auto it = params.materialProperties.find(id);
+    static_cast<QDoubleSpinBox*>(table_->cellWidget(r, ColE))
+        ->setValue(it != params.materialProperties.end() ? it->second.youngsModulus : 0.0);
+    static_cast<QDoubleSpinBox*>(table_->cellWidget(r, ColNu))
+        ->setValue(it != params.materialProperties.end() ? it->second.poissonRatio : -1.0);
+  }
+  updating_ = false;
+  const QString match = matchingPreset();
+  preset_->setCurrentIndex(preset_->findData(match));
+  updateSizeHint();
+}
+
+QString qFEMesherPanelWidget::matchingPreset() const {
+  femesher::MeshingParameters mine = parameters();
+  mine.materialProperties.clear();
+  for (const auto& name : femesher::presetNames()) {
+    auto preset = femesher::presetParameters(name);
+    if (!preset) continue;
+    femesher::MeshingParameters p = preset.value();
+    p.defaultMaterial = mine.defaultMaterial;  // material properties are not part of a preset
+    p.threads = mine.threads;                  // neither is the thread count
+    if (femesher::parametersToJson(p) == femesher::parametersToJson(mine))
+      return QString::fromStdString(name);
+  }
+  return QStringLiteral("custom");
+}
+
+bool qFEMesherPanelWidget::applyPreset(const QString& name) {
+  auto preset = femesher::presetParameters(name.toLower().toStdString());
+  if (!preset) return false;
+  femesher::MeshingParameters p = preset.value();
+  const femesher::MeshingParameters current = parameters();
+  p.defaultMaterial = current.defaultMaterial;
+  p.materialProperties = current.materialProperties;
+  p.threads = current.threads;
+  setParameters(p);
+  return true;
+}
+
+QString qFEMesherPanelWidget::currentPreset() const { return preset_->currentData().toString(); }
+
+void qFEMesherPanelWidget::onPresetChosen(int index) {
+  const QString name = preset_->itemData(index).toString();
+  if (name != QLatin1String("custom")) applyPreset(name);
+}
+
+void qFEMesherPanelWidget::onParameterEdited() {
+  if (updating_) return;
+  const QString match = matchingPreset();
+  preset_->setCurrentIndex(preset_->findData(match));
+  updateSizeHint();
+  // The minimum voxel count colours the table.
+  if (sender() == editors_.value(QStringLiteral("min_voxels"))) {
+    const auto minVoxels = parameters().minVoxels;
+    for (int r = 0; r < table_->rowCount(); ++r) {
+      auto* item = table_->item(r, ColVoxels);
+      const bool small = item->data(Qt::DisplayRole).toLongLong() < minVoxels;
+      item->setForeground(small ? QColor(190, 30, 30) : palette().text().color());
+      if (small) item->setToolTip(tr("Fewer than the minimum voxels: this label will be dropped"));
+    }
+  }
+}
+
+void qFEMesherPanelWidget::updateSizeHint() {
+  const femesher::MeshingParameters p = parameters();
+  QString text;
+  if (volume_) {
+    const auto& s = volume_->spacing;
+    const double mean = (s[0] + s[1] + s[2]) / 3.0;
+    const double h = p.targetEdgeLength > 0 ? p.targetEdgeLength : p.edgeLengthFactor * mean;
+    text = tr("Elements about %1 mm across (voxels are %2 mm); smoothing about %3 mm.")
+               .arg(h, 0, 'f', 2).arg(mean, 0, 'f', 2).arg(p.smoothingSigma * mean, 0, 'f', 2);
+  } else {
+    text = tr("Element size 'Automatic' = the factor below \u00d7 the mean voxel spacing.");
+  }
+  sizeHint_->setText(text);
+}
+
+bool qFEMesherPanelWidget::saveParametersFile(const QString& path) {
+  const std::string json = femesher::parametersToJson(parameters());
+  femesher::Status s = femesher::writeAtomically(path.toStdString(), [&](const std::string& tmp) {
+    std::ofstream out(tmp);
+    out << json << "\n";
+    out.close();
+    if (!out) return femesher::Status(femesher::ErrorCode::WriteFailed, "Cannot write '" + path.toStdString() + "'");
+    return femesher::Status::ok();
+  });
+  if (!s) {
+    showError(QString::fromStdString(s.message()));
+    return false;
+  }
+  showInfo(tr("Parameters saved to %1 (use with: femesher mesh IN -o OUT --parameters %1)").arg(path));
+  return true;
+}
+
+bool qFEMesherPanelWidget::loadParametersFile(const QString& path) {
+  auto r = femesher::loadParametersFile(path.toStdString());
+  if (!r) {
+    showError(QString::fromStdString(r.status().message()));
+    return false;
+  }
+  setParameters(r.value());
+  showInfo(tr("Parameters loaded from %1").arg(path));
+  return true;
+}
+
+void qFEMesherPanelWidget::saveParametersClicked() {
+  const QString path = QFileDialog::getSaveFileName(this, tr("Save parameters"),
+                                                    QStringLiteral("femesher-parameters.json"),
+                                                    tr("JSON (*.json)"));
+  if (!path.isEmpty()) saveParametersFile(path);
+}
+
+void qFEMesherPanelWidget::loadParametersClicked() {
+  const QString path = QFileDialog::getOpenFileName(this, tr("Load parameters"), QString(),
+                                                    tr("JSON (*.json);;All files (*)"));
+  if (!path.isEmpty()) loadParametersFile(path);
+}
+
+// --- run --------------------------------------------------------------------------------------------
+
+QString qFEMesherPanelWidget::stageTitle(const QString& stage) {
+  static const QMap<QString, QString> titles = {
+      {QStringLiteral("LabelPreprocess"), tr("Preparing labels")},
+      {QStringLiteral("IndicatorFunctions"), tr("Smoothing the interfaces")},
+      {QStringLiteral("SurfaceSampling"), tr("Sampling the surfaces")},
+      {QStringLiteral("Junctions"), tr("Finding triple lines")},
+      {QStringLiteral("ParticleSystem"), tr("Particles settling")},
+      {QStringLiteral("BoundaryMesh"), tr("Meshing the surfaces")},
+      {QStringLiteral("VolumeMesh"), tr("Filling with tetrahedra")},
+      {QStringLiteral("Quality"), tr("Measuring quality")},
+      {QStringLiteral("Fidelity"), tr("Comparing with the labels")}};
+  return titles.value(stage, stage);
+}
+
+bool qFEMesherPanelWidget::isRunning() const { return runner_->isRunning(); }
+
+bool qFEMesherPanelWidget::run() {
+  if (isRunning()) return false;
+  if (!volume_) {
+    showError(tr("Open a segmentation first."));
+    return false;
+  }
+  const femesher::MeshingParameters p = parameters();
+  if (femesher::Status s = femesher::validate(p); !s) {
+    showError(QString::fromStdString(s.message()));
+    return false;
+  }
+  auto input = volumeToMesh();
+  if (input->materials.empty()) {
+    showError(tr("Every material is unticked: tick at least one to mesh."));
+    return false;
+  }
+  result_.reset();
+  warnings_->clear();
+  progress_->setValue(0);
+  progress_->setFormat(tr("Starting\u2026"));
+  state_ = QStringLiteral("running");
+  if (!runner_->start(input, p)) {
+    state_ = QStringLiteral("idle");
+    showError(tr("Could not start the run."));
+    return false;
+  }
+  showInfo(tr("Running\u2026"));
+  updateButtons();
+  emit runStarted();
+  return true;
+}
+
+void qFEMesherPanelWidget::cancel() {
+  if (!isRunning()) return;
+  runner_->cancel();
+  progress_->setFormat(tr("Canceling\u2026"));
+  cancelButton_->setEnabled(false);
+}
+
+void qFEMesherPanelWidget::onProgress(const QString& stage, double stageFraction, double total) {
+  progress_->setValue(int(std::lround(1000 * std::clamp(total, 0.0, 1.0))));
+  progress_->setFormat(tr("%1 \u2014 %p%").arg(stageTitle(stage)));
+  progress_->setToolTip(tr("Stage %1: %2% done").arg(stage).arg(int(100 * stageFraction)));
+  emit progressChanged(stage, total);
+}
+
+void qFEMesherPanelWidget::onLog(int level, const QString& message) {
+  if (level == int(femesher::LogLevel::Warning)) {
+    auto* item = new QListWidgetItem(message, warnings_);
+    item->setForeground(QColor(170, 90, 0));
+  }
+  if (level != int(femesher::LogLevel::Debug)) emit statusMessage(message);
+}
+
+void qFEMesherPanelWidget::onSucceeded(std::shared_ptr<const femesher::PipelineResult> result) {
+  result_ = result;
+  state_ = QStringLiteral("succeeded");
+  progress_->setValue(1000);
+  progress_->setFormat(tr("Done \u2014 %p%"));
+  // The result's warnings (some may not have come through the log).
+  QStringList shown;
+  for (int i = 0; i < warnings_->count(); ++i) shown << warnings_->item(i)->text();
+  for (const auto& w : result->warnings) {
+    const QString text = QString::fromStdString(w);
+    if (!shown.contains(text)) {
+      auto* item = new QListWidgetItem(text, warnings_);
+      item->setForeground(QColor(170, 90, 0));
+    }
+  }
+  size_t tets = result->mesh.tets.size();
+  showInfo(tr("Done in %1 s: %2 vertices, %3 tets, %4 materials. %5 warning(s).")
+               .arg(result->totalSeconds, 0, 'f', 1)
+               .arg(result->mesh.points.size())
+               .arg(tets)
+               .arg(result->mesh.materials.size())
+               .arg(warnings_->count()));
+  updateButtons();
+  emit runSucceeded(result);
+  emit runEnded(state_, message_->text());
+}
+
+void qFEMesherPanelWidget::onFailed(int code, const QString& message) {
+  state_ = QStringLiteral("failed");
+  progress_->setFormat(tr("Failed"));
+  showError(tr("The run failed (%1): %2")
+                .arg(QString::fromLatin1(femesher::errorCodeName(femesher::ErrorCode(code))), message));
+  updateButtons();
+  emit runEnded(state_, message);
+}
+
+void qFEMesherPanelWidget::onCanceled() {
+  state_ = QStringLiteral("canceled");
+  progress_->setValue(0);
+  progress_->setFormat(tr("Canceled"));
+  showInfo(tr("Run canceled after %1 s of waiting; nothing was written.")
+               .arg(runner_->lastCancelLatency(), 0, 'f', 2));
+  updateButtons();
+  emit runEnded(state_, message_->text());
+}
+
+void qFEMesherPanelWidget::updateButtons() {
+  const bool running = isRunning();
+  runButton_->setEnabled(!running && volume_ != nullptr);
+  cancelButton_->setEnabled(running);
+  for (auto* b : exportButtons_) b->setEnabled(!running && result_ != nullptr);
+  table_->setEnabled(!running);
+  preset_->setEnabled(!running);
+  for (auto* e : editors_) e->setEnabled(!running);
+  loadParams_->setEnabled(!running);
+  fileRow_->setEnabled(!running);
+}
+
+// --- export -----------------------------------------------------------------------------------------
+
+QStringList qFEMesherPanelWidget::exportExtensions() const {
+  QStringList out;
+  for (const auto& e : femesher::supportedMeshExtensions()) out << QString::fromStdString(e);
+  return out;
+}
+
+bool qFEMesherPanelWidget::exportMesh(const QString& path) {
+  if (!result_) {
+    showError(tr("Nothing to export yet: run the meshing first."));
+    return false;
+  }
+  femesher::ExportOptions options = femesher::exportOptionsFrom(parameters());
+  options.provenance = "FEMesher panel; input " + inputPath_.toStdString();
+  const femesher::Status s = femesher::writeMesh(result_->mesh, path.toStdString(), options);
+  if (!s) {
+    showError(QString::fromStdString(s.message()));
+    return false;
+  }
+  showInfo(tr("Exported %1").arg(path));
+  emit meshExported(path);
+  return true;
+}
+
+void qFEMesherPanelWidget::exportClicked() {
+  const QString ext = sender()->property("extension").toString();
+  QString base = QFileInfo(inputPath_).completeBaseName();
+  if (base.endsWith(QLatin1String(".seg"))) base.chop(4);
+  if (base.isEmpty()) base = QStringLiteral("mesh");
+  const QString dir = inputPath_.isEmpty() ? QString() : QFileInfo(inputPath_).absolutePath();
+  const QString path = QFileDialog::getSaveFileName(
+      this, tr("Export mesh"), QDir(dir).filePath(base + ext),
+      tr("%1 (*%2)").arg(extensionTitle(ext.toStdString()), ext));
+  if (!path.isEmpty()) exportMesh(path.endsWith(ext) ? path : path + ext);
+}
+
+// --- messages -----------------------------------------------------------------------------------------
+
+void qFEMesherPanelWidget::showError(const QString& message) {
+  lastError_ = message;
+  message_->setStyleSheet(QStringLiteral("color: #b01e1e;"));
+  message_->setText(message);
+  emit statusMessage(message);
+}
+
+void qFEMesherPanelWidget::showInfo(const QString& message) {
+  message_->setStyleSheet(QString());
+  message_->setText(message);
+  if (!message.isEmpty()) emit statusMessage(message);
+}

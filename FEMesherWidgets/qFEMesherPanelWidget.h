@@ -1,0 +1,170 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+/// \file qFEMesherPanelWidget.h
+/// The clinician's panel: input file, material table, presets and parameters, Run / Cancel with a
+/// progress bar naming the stage, the run's warnings, exports and parameter files.
+///
+/// The panel edits one `femesher::MeshingParameters` (the struct the CLI fills from `--preset`,
+/// `--set` and `--parameters FILE`): widgets are generated from `parameterDescriptors()` (labels,
+/// units, ranges, tooltips), so a parameter added to the logic appears here by itself. Saved
+/// parameter files are `parametersToJson` output and are accepted by `femesher mesh --parameters`.
+///
+/// Material table: id, name, colour, voxel count and volume (from `summarizeLabelMap`), a
+/// "Mesh" checkbox (an excluded material is turned into background before the run, so it leaves
+/// a cavity), a size scale (kept in the panel only: the logic has no per-material sizing field
+/// yet) and Young's modulus / Poisson ratio (into `MeshingParameters::materialProperties`, written
+/// to INP/FEB exports).
+///
+/// Long work runs in `qFEMesherRunner` (worker thread); the panel never blocks. Errors are shown
+/// inline (no modal dialogs) so the panel can be driven by tests and scripts.
+
+#include <femesher/Parameters.h>
+#include <femesher/Pipeline.h>
+#include <femesher/RunContext.h>
+#include <femesher/Types.h>
+
+#include <QMap>
+#include <QStringList>
+#include <QWidget>
+
+#include <map>
+#include <memory>
+
+class QComboBox;
+class QDoubleSpinBox;
+class QGroupBox;
+class QLabel;
+class QLineEdit;
+class QListWidget;
+class QProgressBar;
+class QPushButton;
+class QTableWidget;
+class qFEMesherRunner;
+
+Q_DECLARE_METATYPE(std::shared_ptr<const femesher::LabelVolume>)
+
+class qFEMesherPanelWidget : public QWidget {
+  Q_OBJECT
+ public:
+  /// Material table columns.
+  enum Column { ColMesh = 0, ColId, ColName, ColColor, ColVoxels, ColScale, ColE, ColNu, ColumnCount };
+
+  explicit qFEMesherPanelWidget(QWidget* parent = nullptr);
+  ~qFEMesherPanelWidget() override;
+
+  // --- input ------------------------------------------------------------------------------------
+  /// Read a label map (NRRD, NIfTI, MetaImage, .seg.nrrd). On failure the message is shown in
+  /// the panel, returned by lastError(), and the previous volume stays.
+  bool openFile(const QString& path);
+  /// Use a volume given by the host (e.g. the Slicer adapter). `displayName` labels it.
+  void setVolume(std::shared_ptr<const femesher::LabelVolume> volume, const QString& displayName);
+  std::shared_ptr<const femesher::LabelVolume> volume() const { return volume_; }
+  QString inputPath() const { return inputPath_; }
+  /// Hide the file row (hosts with their own input selector).
+  void setFileInputVisible(bool visible);
+  QString lastError() const { return lastError_; }
+
+  // --- parameters -------------------------------------------------------------------------------
+  femesher::MeshingParameters parameters() const;
+  void setParameters(const femesher::MeshingParameters& params);
+  /// "coarse", "default", "fine" (case-insensitive); false for an unknown name.
+  bool applyPreset(const QString& name);
+  /// "coarse", "default", "fine" or "custom".
+  QString currentPreset() const;
+  bool saveParametersFile(const QString& path);
+  bool loadParametersFile(const QString& path);
+  /// The editor of a parameter key (QDoubleSpinBox, QCheckBox, QComboBox or QLineEdit).
+  QWidget* parameterEditor(const QString& key) const { return editors_.value(key, nullptr); }
+  QGroupBox* advancedGroup() const { return advanced_; }
+
+  // --- materials --------------------------------------------------------------------------------
+  QTableWidget* materialTable() const { return table_; }
+  int materialRow(int32_t id) const;
+  void setMaterialIncluded(int32_t id, bool included);
+  bool isMaterialIncluded(int32_t id) const;
+  double materialSizeScale(int32_t id) const;
+  /// The volume actually meshed: excluded materials turned into background.
+  std::shared_ptr<const femesher::LabelVolume> volumeToMesh() const;
+
+  // --- run ----------------------------------------------------------------------------------------
+  bool run();
+  void cancel();
+  bool isRunning() const;
+  qFEMesherRunner* runner() const { return runner_; }
+  std::shared_ptr<const femesher::PipelineResult> result() const { return result_; }
+  QProgressBar* progressBar() const { return progress_; }
+  QListWidget* warningsList() const { return warnings_; }
+  QPushButton* runButton() const { return runButton_; }
+  QPushButton* cancelButton() const { return cancelButton_; }
+  /// "idle", "running", "succeeded", "failed", "canceled".
+  QString runState() const { return state_; }
+  /// Plain-words name of a pipeline stage ("ParticleSystem" -> "Particles settling").
+  static QString stageTitle(const QString& stage);
+
+  // --- export -------------------------------------------------------------------------------------
+  /// Write the last result (format from the extension) with the panel's material properties.
+  bool exportMesh(const QString& path);
+  QStringList exportExtensions() const;
+  QPushButton* exportButton(const QString& extension) const { return exportButtons_.value(extension); }
+
+ signals:
+  void volumeLoaded(std::shared_ptr<const femesher::LabelVolume> volume);
+  void runStarted();
+  void previewAvailable(std::shared_ptr<const femesher::PreviewSnapshot> snapshot);
+  void runSucceeded(std::shared_ptr<const femesher::PipelineResult> result);
+  /// After every run: state = "succeeded", "failed" or "canceled".
+  void runEnded(const QString& state, const QString& message);
+  void progressChanged(const QString& stage, double totalFraction);
+  void statusMessage(const QString& message);
+  void meshExported(const QString& path);
+
+ private slots:
+  void browse();
+  void onPresetChosen(int index);
+  void onParameterEdited();
+  void onProgress(const QString& stage, double stageFraction, double total);
+  void onLog(int level, const QString& message);
+  void onSucceeded(std::shared_ptr<const femesher::PipelineResult> result);
+  void onFailed(int code, const QString& message);
+  void onCanceled();
+  void exportClicked();
+  void saveParametersClicked();
+  void loadParametersClicked();
+
+ private:
+  void buildParameterEditors();
+  void fillMaterialTable();
+  void updateSizeHint();
+  void updateButtons();
+  void showError(const QString& message);
+  void showInfo(const QString& message);
+  void setEditorValue(const std::string& key, const std::string& value);
+  std::string editorValue(const std::string& key) const;
+  QString matchingPreset() const;
+
+  std::shared_ptr<const femesher::LabelVolume> volume_;
+  std::shared_ptr<const femesher::PipelineResult> result_;
+  QString inputPath_;
+  QString lastError_;
+  QString state_ = QStringLiteral("idle");
+  qFEMesherRunner* runner_ = nullptr;
+  bool updating_ = false;
+
+  QWidget* fileRow_ = nullptr;
+  QLineEdit* fileEdit_ = nullptr;
+  QLabel* volumeInfo_ = nullptr;
+  QTableWidget* table_ = nullptr;
+  QComboBox* preset_ = nullptr;
+  QLabel* sizeHint_ = nullptr;
+  QGroupBox* advanced_ = nullptr;
+  QMap<QString, QWidget*> editors_;
+  QPushButton* runButton_ = nullptr;
+  QPushButton* cancelButton_ = nullptr;
+  QProgressBar* progress_ = nullptr;
+  QLabel* message_ = nullptr;
+  QListWidget* warnings_ = nullptr;
+  QMap<QString, QPushButton*> exportButtons_;
+  QPushButton* saveParams_ = nullptr;
+  QPushButton* loadParams_ = nullptr;
+  femesher::MeshingParameters hidden_;  ///< fields without an editor keep their values here
+};

@@ -1,0 +1,611 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include "qFEMesherPreviewView.h"
+
+#include <QVTKOpenGLNativeWidget.h>
+
+#include <vtkActor.h>
+#include <vtkCamera.h>
+#include <vtkCellArray.h>
+#include <vtkCellData.h>
+#include <vtkDataSetSurfaceFilter.h>
+#include <vtkDoubleArray.h>
+#include <vtkExtractGeometry.h>
+#include <vtkGenericOpenGLRenderWindow.h>
+#include <vtkIntArray.h>
+#include <vtkLegendBoxActor.h>
+#include <vtkLookupTable.h>
+#include <vtkOutlineSource.h>
+#include <vtkPlane.h>
+#include <vtkPointData.h>
+#include <vtkPoints.h>
+#include <vtkPolyData.h>
+#include <vtkPolyDataMapper.h>
+#include <vtkProperty.h>
+#include <vtkRenderer.h>
+#include <vtkScalarBarActor.h>
+#include <vtkSphereSource.h>
+#include <vtkTextActor.h>
+#include <vtkTextProperty.h>
+#include <vtkUnsignedCharArray.h>
+#include <vtkUnstructuredGrid.h>
+#include <vtkWindowToImageFilter.h>
+#include <vtkImageData.h>
+
+#include <QCheckBox>
+#include <QComboBox>
+#include <QDateTime>
+#include <QHBoxLayout>
+#include <QLabel>
+#include <QSlider>
+#include <QTimer>
+#include <QVBoxLayout>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+namespace {
+
+/// Well-separated colours for interface pairs (assigned in order of first appearance).
+const double kPairPalette[][3] = {
+    {0.89, 0.10, 0.11}, {0.22, 0.49, 0.72}, {0.30, 0.69, 0.29}, {0.60, 0.31, 0.64},
+    {1.00, 0.50, 0.00}, {0.65, 0.34, 0.16}, {0.97, 0.51, 0.75}, {0.10, 0.75, 0.80},
+    {0.74, 0.74, 0.13}, {0.92, 0.92, 0.92}, {0.55, 0.83, 0.78}, {0.98, 0.75, 0.43},
+    {0.50, 0.69, 0.83}, {0.80, 0.92, 0.77}, {0.70, 0.55, 0.95}, {0.85, 0.37, 0.01}};
+constexpr int kPairPaletteSize = sizeof(kPairPalette) / sizeof(kPairPalette[0]);
+
+const char* kColorByNames[] = {"Material", "Aspect ratio", "Radius ratio",
+                               "Min dihedral angle", "Scaled Jacobian"};
+
+vtkSmartPointer<vtkPolyData> legendSymbol() {
+  auto s = vtkSmartPointer<vtkSphereSource>::New();
+  s->SetThetaResolution(12);
+  s->SetPhiResolution(8);
+  s->Update();
+  vtkSmartPointer<vtkPolyData> out = s->GetOutput();
+  return out;
+}
+
+}  // namespace
+
+qFEMesherPreviewView::qFEMesherPreviewView(QWidget* parent) : QWidget(parent) {
+  auto* layout = new QVBoxLayout(this);
+  layout->setContentsMargins(0, 0, 0, 0);
+  layout->setSpacing(2);
+
+  vtkWidget_ = new QVTKOpenGLNativeWidget(this);
+  renderWindow_ = vtkSmartPointer<vtkGenericOpenGLRenderWindow>::New();
+  vtkWidget_->setRenderWindow(renderWindow_);
+  vtkWidget_->setMinimumSize(320, 240);
+  renderer_ = vtkSmartPointer<vtkRenderer>::New();
+  renderer_->SetBackground(0.32, 0.34, 0.43);
+  renderer_->SetBackground2(0.82, 0.85, 0.90);
+  renderer_->GradientBackgroundOn();
+  renderWindow_->AddRenderer(renderer_);
+  layout->addWidget(vtkWidget_, 1);
+
+  // Controls under the view.
+  auto* controls = new QHBoxLayout;
+  controls->setContentsMargins(4, 0, 4, 2);
+  controls->addWidget(new QLabel(tr("Colour by:"), this));
+  colorCombo_ = new QComboBox(this);
+  for (const char* n : kColorByNames) colorCombo_->addItem(tr(n));
+  colorCombo_->setToolTip(tr("Colour the mesh by material or by a per-tet quality metric"));
+  controls->addWidget(colorCombo_);
+  clipCheck_ = new QCheckBox(tr("Clip"), this);
+  clipCheck_->setToolTip(tr("Cut the mesh with a plane to look inside; whole tets are kept"));
+  controls->addWidget(clipCheck_);
+  clipAxis_ = new QComboBox(this);
+  clipAxis_->addItems({tr("Left-right (sagittal)"), tr("Front-back (coronal)"),
+                       tr("Head-foot (axial)")});
+  clipAxis_->setCurrentIndex(1);
+  controls->addWidget(clipAxis_);
+  clipSlider_ = new QSlider(Qt::Horizontal, this);
+  clipSlider_->setRange(0, 100);
+  clipSlider_->setValue(50);
+  clipSlider_->setToolTip(tr("Position of the clipping plane"));
+  controls->addWidget(clipSlider_, 1);
+  layout->addLayout(controls);
+  connect(colorCombo_, QOverload<int>::of(&QComboBox::currentIndexChanged), this,
+          &qFEMesherPreviewView::onControlsChanged);
+  connect(clipCheck_, &QCheckBox::toggled, this, &qFEMesherPreviewView::onControlsChanged);
+  connect(clipAxis_, QOverload<int>::of(&QComboBox::currentIndexChanged), this,
+          &qFEMesherPreviewView::onControlsChanged);
+  connect(clipSlider_, &QSlider::valueChanged, this, &qFEMesherPreviewView::onControlsChanged);
+
+  // Particles.
+  points_ = vtkSmartPointer<vtkPolyData>::New();
+  auto pointsMapper = vtkSmartPointer<vtkPolyDataMapper>::New();
+  pointsMapper->SetInputData(points_);
+  pointsMapper->SetColorModeToDirectScalars();
+  pointsMapper->SetScalarModeToUsePointData();
+  pointsActor_ = vtkSmartPointer<vtkActor>::New();
+  pointsActor_->SetMapper(pointsMapper);
+  pointsActor_->GetProperty()->SetPointSize(5);
+  pointsActor_->GetProperty()->SetRenderPointsAsSpheres(true);
+  pointsActor_->VisibilityOff();
+  renderer_->AddActor(pointsActor_);
+
+  // Preview surfaces.
+  surface_ = vtkSmartPointer<vtkPolyData>::New();
+  auto surfaceMapper = vtkSmartPointer<vtkPolyDataMapper>::New();
+  surfaceMapper->SetInputData(surface_);
+  surfaceMapper->SetColorModeToDirectScalars();
+  surfaceMapper->SetScalarModeToUseCellData();
+  surfaceActor_ = vtkSmartPointer<vtkActor>::New();
+  surfaceActor_->SetMapper(surfaceMapper);
+  surfaceActor_->GetProperty()->EdgeVisibilityOn();
+  surfaceActor_->GetProperty()->SetEdgeColor(0.15, 0.15, 0.15);
+  surfaceActor_->VisibilityOff();
+  renderer_->AddActor(surfaceActor_);
+
+  // Final mesh: grid -> (optional) plane extraction keeping whole cells -> outer faces.
+  grid_ = vtkSmartPointer<vtkUnstructuredGrid>::New();
+  plane_ = vtkSmartPointer<vtkPlane>::New();
+  extract_ = vtkSmartPointer<vtkExtractGeometry>::New();
+  extract_->SetInputData(grid_);
+  extract_->SetImplicitFunction(plane_);
+  extract_->ExtractInsideOn();
+  extract_->ExtractBoundaryCellsOn();
+  gridSurface_ = vtkSmartPointer<vtkDataSetSurfaceFilter>::New();
+  gridSurface_->SetInputData(grid_);
+  meshMapper_ = vtkSmartPointer<vtkPolyDataMapper>::New();
+  meshMapper_->SetInputConnection(gridSurface_->GetOutputPort());
+  meshMapper_->SetScalarModeToUseCellFieldData();
+  meshActor_ = vtkSmartPointer<vtkActor>::New();
+  meshActor_->SetMapper(meshMapper_);
+  meshActor_->GetProperty()->EdgeVisibilityOn();
+  meshActor_->GetProperty()->SetEdgeColor(0.12, 0.12, 0.12);
+  meshActor_->GetProperty()->SetLineWidth(0.6f);
+  meshActor_->VisibilityOff();
+  renderer_->AddActor(meshActor_);
+
+  outline_ = vtkSmartPointer<vtkOutlineSource>::New();
+  auto outlineMapper = vtkSmartPointer<vtkPolyDataMapper>::New();
+  outlineMapper->SetInputConnection(outline_->GetOutputPort());
+  outlineActor_ = vtkSmartPointer<vtkActor>::New();
+  outlineActor_->SetMapper(outlineMapper);
+  outlineActor_->GetProperty()->SetColor(0.9, 0.9, 0.9);
+  outlineActor_->VisibilityOff();
+  renderer_->AddActor(outlineActor_);
+
+  lut_ = vtkSmartPointer<vtkLookupTable>::New();
+  lut_->SetHueRange(0.667, 0.0);  // blue (good) .. red (bad), flipped per metric
+  lut_->Build();
+  scalarBar_ = vtkSmartPointer<vtkScalarBarActor>::New();
+  scalarBar_->SetLookupTable(lut_);
+  scalarBar_->SetNumberOfLabels(5);
+  scalarBar_->SetWidth(0.08);
+  scalarBar_->SetHeight(0.5);
+  scalarBar_->SetPosition(0.9, 0.25);
+  scalarBar_->VisibilityOff();
+  renderer_->AddActor2D(scalarBar_);
+
+  legend_ = vtkSmartPointer<vtkLegendBoxActor>::New();
+  legend_->GetPositionCoordinate()->SetCoordinateSystemToNormalizedViewport();
+  legend_->GetPositionCoordinate()->SetValue(0.76, 0.7);
+  legend_->GetPosition2Coordinate()->SetValue(0.23, 0.28);
+  legend_->UseBackgroundOn();
+  legend_->SetBackgroundColor(0.1, 0.1, 0.12);
+  legend_->SetBackgroundOpacity(0.6);
+  legend_->GetEntryTextProperty()->SetFontSize(14);
+  legend_->VisibilityOff();
+  renderer_->AddActor2D(legend_);
+
+  text_ = vtkSmartPointer<vtkTextActor>::New();
+  text_->GetTextProperty()->SetFontSize(16);
+  text_->GetTextProperty()->SetColor(1, 1, 1);
+  text_->GetTextProperty()->ShadowOn();
+  text_->SetDisplayPosition(10, 10);
+  renderer_->AddActor2D(text_);
+  setStatusText(tr("Open a label map, then press Run."));
+
+  redrawTimer_ = new QTimer(this);
+  redrawTimer_->setSingleShot(true);
+  connect(redrawTimer_, &QTimer::timeout, this, &qFEMesherPreviewView::drawPendingSnapshot);
+}
+
+qFEMesherPreviewView::~qFEMesherPreviewView() = default;
+
+std::array<double, 3> qFEMesherPreviewView::materialColor(int32_t id) const {
+  if (const femesher::Material* m = femesher::findMaterial(materials_, id)) return m->color;
+  return femesher::defaultLabelColor(id);
+}
+
+void qFEMesherPreviewView::updateLegend() {
+  // About 3.2% of the view height per entry, anchored at the top right corner.
+  const int n = legend_->GetNumberOfEntries();
+  const double h = std::min(0.6, 0.038 * n + 0.015);
+  legend_->GetPositionCoordinate()->SetValue(0.76, 0.985 - h);
+  legend_->GetPosition2Coordinate()->SetValue(0.23, h);
+}
+
+void qFEMesherPreviewView::setStatusText(const QString& text) {
+  text_->SetInput(text.toUtf8().constData());
+}
+
+void qFEMesherPreviewView::setMaterials(const std::vector<femesher::Material>& materials) {
+  materials_ = materials;
+}
+
+void qFEMesherPreviewView::setVolume(const femesher::LabelVolume& volume) {
+  clear();
+  materials_ = volume.materials;
+  // Physical bounds of the voxel centres (all 8 corners through the direction matrix).
+  double b[6] = {1e300, -1e300, 1e300, -1e300, 1e300, -1e300};
+  for (int c = 0; c < 8; ++c) {
+    const femesher::Vec3 ijk{{double((c & 1) ? volume.dims[0] - 1 : 0),
+                              double((c & 2) ? volume.dims[1] - 1 : 0),
+                              double((c & 4) ? volume.dims[2] - 1 : 0)}};
+    const femesher::Vec3 p = volume.indexToPhysical(ijk);
+    for (int a = 0; a < 3; ++a) {
+      b[2 * a] = std::min(b[2 * a], p[a]);
+      b[2 * a + 1] = std::max(b[2 * a + 1], p[a]);
+    }
+  }
+  std::copy(b, b + 6, bounds_);
+  outline_->SetBounds(bounds_);
+  outlineActor_->VisibilityOn();
+  content_ = Content::Volume;
+  resetCamera(bounds_);
+  setStatusText(tr("%1 x %2 x %3 voxels, %4 materials. Press Run to mesh.")
+                    .arg(volume.dims[0]).arg(volume.dims[1]).arg(volume.dims[2])
+                    .arg(volume.materials.size()));
+  legendPairs_.clear();
+  legend_->SetNumberOfEntries(int(materials_.size()));
+  auto symbol = legendSymbol();
+  for (size_t i = 0; i < materials_.size(); ++i) {
+    double c[3] = {materials_[i].color[0], materials_[i].color[1], materials_[i].color[2]};
+    const std::string s = std::to_string(materials_[i].id) + "  " + materials_[i].name;
+    legend_->SetEntry(int(i), symbol, s.c_str(), c);
+  }
+  legend_->SetVisibility(!materials_.empty());
+  updateLegend();
+  renderNow();
+}
+
+void qFEMesherPreviewView::clear() {
+  redrawTimer_->stop();
+  pending_.reset();
+  mesh_.reset();
+  quality_.reset();
+  points_->Initialize();
+  surface_->Initialize();
+  grid_->Initialize();
+  pointsActor_->VisibilityOff();
+  surfaceActor_->VisibilityOff();
+  meshActor_->VisibilityOff();
+  scalarBar_->VisibilityOff();
+  displayedPoints_ = 0;
+  snapshotsShown_ = 0;
+  content_ = Content::Empty;
+  setStatusText(tr("Open a label map, then press Run."));
+  renderNow();
+}
+
+void qFEMesherPreviewView::resetCamera(const double b[6]) {
+  vtkCamera* cam = renderer_->GetActiveCamera();
+  const double c[3] = {0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3]), 0.5 * (b[4] + b[5])};
+  // Anterior view (LPS: anterior = -y), superior up, slightly from the left for depth.
+  cam->SetFocalPoint(c);
+  cam->SetPosition(c[0] + 0.35, c[1] - 1.0, c[2] + 0.25);
+  cam->SetViewUp(0, 0, 1);
+  renderer_->ResetCamera(const_cast<double*>(b));
+  cam->Zoom(1.15);
+  renderer_->ResetCameraClippingRange();
+}
+
+void qFEMesherPreviewView::showSnapshot(std::shared_ptr<const femesher::PreviewSnapshot> s) {
+  if (!s) return;
+  pending_ = std::move(s);
+  const qint64 now = QDateTime::currentMSecsSinceEpoch();
+  const qint64 wait = std::max<qint64>(0, lastRedraw_ + minRedrawMs_ - now);
+  if (!redrawTimer_->isActive()) redrawTimer_->start(int(wait));
+}
+
+void qFEMesherPreviewView::drawPendingSnapshot() {
+  auto s = std::move(pending_);
+  pending_.reset();
+  if (!s) return;
+  lastRedraw_ = QDateTime::currentMSecsSinceEpoch();
+  // Colours per group (material pair), stable through the run.
+  std::vector<std::array<unsigned char, 3>> groupColor(s->groups.size());
+  for (size_t g = 0; g < s->groups.size(); ++g) {
+    auto it = std::find(legendPairs_.begin(), legendPairs_.end(), s->groups[g]);
+    size_t idx = size_t(it - legendPairs_.begin());
+    if (it == legendPairs_.end()) legendPairs_.push_back(s->groups[g]);
+    const double* c = kPairPalette[idx % kPairPaletteSize];
+    groupColor[g] = {{static_cast<unsigned char>(255 * c[0]), static_cast<unsigned char>(255 * c[1]),
+                      static_cast<unsigned char>(255 * c[2])}};
+  }
+  auto colorOf = [&](size_t i) -> std::array<unsigned char, 3> {
+    if (i < s->pointGroup.size() && s->pointGroup[i] >= 0 &&
+        size_t(s->pointGroup[i]) < groupColor.size())
+      return groupColor[size_t(s->pointGroup[i])];
+    return {{230, 230, 230}};
+  };
+  auto pts = vtkSmartPointer<vtkPoints>::New();
+  pts->SetDataTypeToFloat();
+  pts->SetNumberOfPoints(vtkIdType(s->points.size()));
+  for (size_t i = 0; i < s->points.size(); ++i)
+    pts->SetPoint(vtkIdType(i), s->points[i][0], s->points[i][1], s->points[i][2]);
+
+  meshActor_->VisibilityOff();
+  scalarBar_->VisibilityOff();
+  if (s->kind == "surface" && !s->triangles.empty()) {
+    auto tris = vtkSmartPointer<vtkCellArray>::New();
+    auto colors = vtkSmartPointer<vtkUnsignedCharArray>::New();
+    colors->SetNumberOfComponents(3);
+    colors->SetName("colors");
+    for (const auto& t : s->triangles) {
+      const vtkIdType ids[3] = {t[0], t[1], t[2]};
+      tris->InsertNextCell(3, ids);
+      const auto c = colorOf(size_t(t[0]));
+      colors->InsertNextTypedTuple(c.data());
+    }
+    surface_->Initialize();
+    surface_->SetPoints(pts);
+    surface_->SetPolys(tris);
+    surface_->GetCellData()->SetScalars(colors);
+    surface_->Modified();
+    surfaceActor_->VisibilityOn();
+    pointsActor_->VisibilityOff();
+  } else {
+    auto verts = vtkSmartPointer<vtkCellArray>::New();
+    auto colors = vtkSmartPointer<vtkUnsignedCharArray>::New();
+    colors->SetNumberOfComponents(3);
+    colors->SetName("colors");
+    colors->SetNumberOfTuples(vtkIdType(s->points.size()));
+    for (size_t i = 0; i < s->points.size(); ++i) {
+      const vtkIdType id = vtkIdType(i);
+      verts->InsertNextCell(1, &id);
+      const auto c = colorOf(i);
+      colors->SetTypedTuple(id, c.data());
+    }
+    points_->Initialize();
+    points_->SetPoints(pts);
+    points_->SetVerts(verts);
+    points_->GetPointData()->SetScalars(colors);
+    points_->Modified();
+    pointsActor_->VisibilityOn();
+    surfaceActor_->VisibilityOff();
+  }
+  displayedPoints_ = s->points.size();
+  content_ = Content::Preview;
+  ++snapshotsShown_;
+
+  // Legend: interface pairs present in this snapshot.
+  auto symbol = legendSymbol();
+  legend_->SetNumberOfEntries(int(std::min<size_t>(s->groups.size(), 14)));
+  for (size_t g = 0; g < s->groups.size() && g < 14; ++g) {
+    const auto [a, b] = s->groups[g];
+    auto nameOf = [&](int32_t id) -> std::string {
+      if (id < 0) return "outside";
+      const femesher::Material* m = femesher::findMaterial(materials_, id);
+      return m ? m->name : "label " + std::to_string(id);
+    };
+    const std::string text = nameOf(a) + " | " + nameOf(b);
+    double c[3] = {groupColor[g][0] / 255.0, groupColor[g][1] / 255.0, groupColor[g][2] / 255.0};
+    legend_->SetEntry(int(g), symbol, text.c_str(), c);
+  }
+  legend_->SetVisibility(!s->groups.empty());
+  updateLegend();
+  QString what = s->kind == "surface" ? tr("%1: surface preview, %2 triangles")
+                                            .arg(QString::fromStdString(s->stage))
+                                            .arg(s->triangles.size())
+                                      : tr("%1: %2 particles on %3 interfaces")
+                                            .arg(QString::fromStdString(s->stage))
+                                            .arg(s->points.size())
+                                            .arg(s->groups.size());
+  if (s->iteration > 0) what += tr(", iteration %1").arg(s->iteration);
+  setStatusText(what);
+  renderWindow_->Render();
+  vtkWidget_->update();
+  emit snapshotDrawn(int(s->points.size()));
+}
+
+void qFEMesherPreviewView::setMesh(std::shared_ptr<const femesher::TetMesh> mesh) {
+  redrawTimer_->stop();
+  pending_.reset();
+  mesh_ = std::move(mesh);
+  quality_.reset();
+  if (!mesh_) return;
+  for (const auto& m : mesh_->materials)
+    if (!femesher::findMaterial(materials_, m.id)) materials_.push_back(m);
+
+  auto pts = vtkSmartPointer<vtkPoints>::New();
+  pts->SetDataTypeToDouble();
+  pts->SetNumberOfPoints(vtkIdType(mesh_->points.size()));
+  for (size_t i = 0; i < mesh_->points.size(); ++i)
+    pts->SetPoint(vtkIdType(i), mesh_->points[i].data());
+  auto cells = vtkSmartPointer<vtkCellArray>::New();
+  cells->AllocateExact(vtkIdType(mesh_->tets.size()), vtkIdType(4 * mesh_->tets.size()));
+  auto labels = vtkSmartPointer<vtkIntArray>::New();
+  labels->SetName("labels");
+  labels->SetNumberOfTuples(vtkIdType(mesh_->tets.size()));
+  for (size_t t = 0; t < mesh_->tets.size(); ++t) {
+    const vtkIdType ids[4] = {mesh_->tets[t][0], mesh_->tets[t][1], mesh_->tets[t][2],
+                              mesh_->tets[t][3]};
+    cells->InsertNextCell(4, ids);
+    labels->SetValue(vtkIdType(t), t < mesh_->tetLabels.size() ? mesh_->tetLabels[t] : 0);
+  }
+  grid_->Initialize();
+  grid_->SetPoints(pts);
+  grid_->SetCells(VTK_TETRA, cells);
+  grid_->GetCellData()->AddArray(labels);
+  updateMeshColors();
+  updateClipPlane();
+  {  // frame the mesh (same viewing direction)
+    double mb[6];
+    grid_->GetBounds(mb);
+    renderer_->ResetCamera(mb);
+    renderer_->GetActiveCamera()->Zoom(1.1);
+  }
+  pointsActor_->VisibilityOff();
+  surfaceActor_->VisibilityOff();
+  meshActor_->VisibilityOn();
+  content_ = Content::Mesh;
+  // Legend: the materials of the mesh.
+  auto symbol = legendSymbol();
+  legend_->SetNumberOfEntries(int(mesh_->materials.size()));
+  for (size_t i = 0; i < mesh_->materials.size(); ++i) {
+    const auto c3 = materialColor(mesh_->materials[i].id);
+    double c[3] = {c3[0], c3[1], c3[2]};
+    const std::string s = std::to_string(mesh_->materials[i].id) + "  " + mesh_->materials[i].name;
+    legend_->SetEntry(int(i), symbol, s.c_str(), c);
+  }
+  legend_->SetVisibility(colorBy() == ColorBy::Material && !mesh_->materials.empty());
+  updateLegend();
+  setStatusText(tr("Mesh: %1 vertices, %2 tets, %3 materials")
+                    .arg(mesh_->points.size()).arg(mesh_->tets.size())
+                    .arg(mesh_->materials.size()));
+  renderNow();
+}
+
+size_t qFEMesherPreviewView::displayedCellCount() const {
+  if (content_ != Content::Mesh) return 0;
+  vtkDataSet* in = isClipping() ? vtkDataSet::SafeDownCast(extract_->GetOutput())
+                                : static_cast<vtkDataSet*>(grid_.Get());
+  return in ? size_t(in->GetNumberOfCells()) : 0;
+}
+
+void qFEMesherPreviewView::updateMeshColors() {
+  if (!mesh_) return;
+  const ColorBy mode = colorBy();
+  const vtkIdType n = vtkIdType(mesh_->tets.size());
+  if (mode == ColorBy::Material) {
+    auto colors = vtkSmartPointer<vtkUnsignedCharArray>::New();
+    colors->SetName("colors");
+    colors->SetNumberOfComponents(3);
+    colors->SetNumberOfTuples(n);
+    std::map<int32_t, std::array<unsigned char, 3>> cache;
+    for (vtkIdType t = 0; t < n; ++t) {
+      const int32_t l = mesh_->tetLabels[size_t(t)];
+      auto it = cache.find(l);
+      if (it == cache.end()) {
+        const auto c = materialColor(l);
+        it = cache.emplace(l, std::array<unsigned char, 3>{
+                                  {static_cast<unsigned char>(255 * c[0]),
+                                   static_cast<unsigned char>(255 * c[1]),
+                                   static_cast<unsigned char>(255 * c[2])}}).first;
+      }
+      colors->SetTypedTuple(t, it->second.data());
+    }
+    grid_->GetCellData()->RemoveArray("colors");
+    grid_->GetCellData()->AddArray(colors);
+    meshMapper_->SetColorModeToDirectScalars();
+    meshMapper_->SelectColorArray("colors");
+    meshMapper_->SetScalarModeToUseCellFieldData();
+    meshMapper_->ScalarVisibilityOn();
+    scalarBar_->VisibilityOff();
+    legend_->SetVisibility(!mesh_->materials.empty());
+  } else {
+    if (!quality_) quality_ = std::make_unique<femesher::TetQuality>(femesher::computeTetQuality(*mesh_));
+    const std::vector<double>* values = nullptr;
+    double lo = 0, hi = 1;
+    bool highIsBad = true;
+    const char* title = "";
+    switch (mode) {
+      case ColorBy::AspectRatio: values = &quality_->aspectRatio; lo = 1; hi = 4; title = "Aspect ratio"; break;
+      case ColorBy::RadiusRatio: values = &quality_->radiusRatio; lo = 1; hi = 4; title = "Radius ratio"; break;
+      case ColorBy::MinDihedral: values = &quality_->minDihedral; lo = 0; hi = 70.53; highIsBad = false; title = "Min dihedral"; break;
+      case ColorBy::ScaledJacobian: values = &quality_->scaledJacobian; lo = 0; hi = 1; highIsBad = false; title = "Scaled Jacobian"; break;
+      default: break;
+    }
+    auto arr = vtkSmartPointer<vtkDoubleArray>::New();
+    arr->SetName("metric");
+    arr->SetNumberOfTuples(n);
+    for (vtkIdType t = 0; t < n; ++t) {
+      double v = values && size_t(t) < values->size() ? (*values)[size_t(t)] : 0.0;
+      if (!std::isfinite(v)) v = highIsBad ? hi : lo;
+      arr->SetValue(t, v);
+    }
+    grid_->GetCellData()->RemoveArray("metric");
+    grid_->GetCellData()->AddArray(arr);
+    lut_->SetHueRange(highIsBad ? 0.667 : 0.0, highIsBad ? 0.0 : 0.667);
+    lut_->SetTableRange(lo, hi);
+    lut_->Build();
+    meshMapper_->SetLookupTable(lut_);
+    meshMapper_->SetColorModeToMapScalars();
+    meshMapper_->SetScalarRange(lo, hi);
+    meshMapper_->SelectColorArray("metric");
+    meshMapper_->SetScalarModeToUseCellFieldData();
+    meshMapper_->UseLookupTableScalarRangeOff();
+    meshMapper_->ScalarVisibilityOn();
+    scalarBar_->SetTitle(title);
+    scalarBar_->VisibilityOn();
+    legend_->VisibilityOff();
+  }
+  grid_->Modified();
+}
+
+void qFEMesherPreviewView::updateClipPlane() {
+  const bool on = clipCheck_->isChecked();
+  const int axis = clipAxis_->currentIndex();
+  double b[6];
+  if (grid_->GetNumberOfPoints() > 0) grid_->GetBounds(b);
+  else std::copy(bounds_, bounds_ + 6, b);
+  const double f = clipSlider_->value() / 100.0;
+  double origin[3] = {0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3]), 0.5 * (b[4] + b[5])};
+  origin[axis] = b[2 * axis] + f * (b[2 * axis + 1] - b[2 * axis]);
+  double normal[3] = {0, 0, 0};
+  normal[axis] = -1;  // keep the far half (seen from the camera on the negative side)
+  plane_->SetOrigin(origin);
+  plane_->SetNormal(normal);
+  plane_->Modified();
+  gridSurface_->SetInputConnection(on ? extract_->GetOutputPort() : nullptr);
+  if (!on) gridSurface_->SetInputData(grid_);
+  else extract_->SetInputData(grid_);
+}
+
+void qFEMesherPreviewView::onControlsChanged() {
+  if (sender() == colorCombo_) updateMeshColors();
+  if (sender() == clipAxis_ && content_ == Content::Mesh) {
+    // Look at the cut face: camera on the negative side of the chosen axis.
+    double b[6];
+    grid_->GetBounds(b);
+    vtkCamera* cam = renderer_->GetActiveCamera();
+    const double c[3] = {0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3]), 0.5 * (b[4] + b[5])};
+    double pos[3] = {c[0] + 0.3, c[1] + 0.3, c[2] + 0.3};
+    pos[clipAxis_->currentIndex()] -= 1.3;
+    cam->SetFocalPoint(c);
+    cam->SetPosition(pos);
+    cam->SetViewUp(clipAxis_->currentIndex() == 2 ? 0 : 0, clipAxis_->currentIndex() == 2 ? 1 : 0,
+                   clipAxis_->currentIndex() == 2 ? 0 : 1);
+    renderer_->ResetCamera(b);
+  }
+  updateClipPlane();
+  renderNow();
+}
+
+void qFEMesherPreviewView::setColorBy(ColorBy mode) { colorCombo_->setCurrentIndex(int(mode)); }
+
+qFEMesherPreviewView::ColorBy qFEMesherPreviewView::colorBy() const {
+  return ColorBy(std::max(0, colorCombo_->currentIndex()));
+}
+
+void qFEMesherPreviewView::setClipping(bool on, int axis, double fraction) {
+  clipAxis_->setCurrentIndex(std::clamp(axis, 0, 2));
+  clipSlider_->setValue(int(std::lround(std::clamp(fraction, 0.0, 1.0) * 100)));
+  clipCheck_->setChecked(on);
+  updateClipPlane();
+  renderNow();
+}
+
+bool qFEMesherPreviewView::isClipping() const { return clipCheck_->isChecked(); }
+
+void qFEMesherPreviewView::renderNow() {
+  if (pending_) {
+    drawPendingSnapshot();
+    return;
+  }
+  renderer_->ResetCameraClippingRange();
+  renderWindow_->Render();
+  vtkWidget_->update();
+}
+
+QImage qFEMesherPreviewView::grabRenderImage() {
+  if (pending_) drawPendingSnapshot();
+  renderNow();
+  return vtkWidget_->grabFramebuffer();
+}

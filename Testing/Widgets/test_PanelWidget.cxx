@@ -1,0 +1,346 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// Drives the meshing panel (and the histogram widget wired to it) like a user: open a volume,
+// read the material table, change presets and parameters, save/load a parameter file (and give
+// it to the CLI), run, cancel mid-run, run to the end, exclude a material, export every format.
+// Pure QWidgets: runs with QT_QPA_PLATFORM=offscreen.
+#include <qFEMesherPanelWidget.h>
+#include <qFEMesherQualityHistogramWidget.h>
+#include <qFEMesherRunner.h>
+
+#include <femesher/Phantom.h>
+#include <femesher/io/LabelMapIO.h>
+#include <femesher/io/MeshIO.h>
+
+#include <QCheckBox>
+#include <QComboBox>
+#include <QDir>
+#include <QDoubleSpinBox>
+#include <QFile>
+#include <QFileInfo>
+#include <QGroupBox>
+#include <QLabel>
+#include <QListWidget>
+#include <QProcess>
+#include <QProgressBar>
+#include <QPushButton>
+#include <QSignalSpy>
+#include <QTableWidget>
+#include <QtTest>
+
+#include <set>
+
+using namespace femesher;
+
+class PanelWidgetTest : public QObject {
+  Q_OBJECT
+
+ private:
+  QString tmp_;
+  QString phantomPath_;
+  std::unique_ptr<qFEMesherPanelWidget> panel_;
+  std::unique_ptr<qFEMesherQualityHistogramWidget> histograms_;
+
+  QString tmpFile(const QString& name) const { return QDir(tmp_).filePath(name); }
+  QDoubleSpinBox* spin(const char* key) const {
+    return qobject_cast<QDoubleSpinBox*>(panel_->parameterEditor(QString::fromLatin1(key)));
+  }
+  bool waitForEnd(int timeoutMs) {
+    QElapsedTimer t;
+    t.start();
+    while (panel_->isRunning() && t.elapsed() < timeoutMs) QTest::qWait(20);
+    QTest::qWait(50);
+    return !panel_->isRunning();
+  }
+
+ private slots:
+  void initTestCase() {
+    tmp_ = QStringLiteral(FEMESHER_TEST_TMP_DIR "/panel");
+    QDir(tmp_).removeRecursively();
+    QVERIFY(QDir().mkpath(tmp_));
+    phantomPath_ = tmpFile(QStringLiteral("phantom.nrrd"));
+    QVERIFY(writeLabelMap(makePhantom(), phantomPath_.toStdString()).isOk());
+    panel_ = std::make_unique<qFEMesherPanelWidget>();
+    histograms_ = std::make_unique<qFEMesherQualityHistogramWidget>();
+    connect(panel_.get(), &qFEMesherPanelWidget::runSucceeded, histograms_.get(),
+            [this](std::shared_ptr<const PipelineResult> r) {
+              histograms_->setReports(r->quality, r->hasFidelity ? &r->fidelity : nullptr,
+                                      r->mesh.materials);
+            });
+    panel_->resize(600, 1000);
+    panel_->show();
+  }
+
+  void beforeOpeningNothingRuns() {
+    QVERIFY(!panel_->runButton()->isEnabled());
+    QVERIFY(!panel_->run());
+    QVERIFY(!panel_->lastError().isEmpty());
+    for (const QString& ext : panel_->exportExtensions())
+      QVERIFY(!panel_->exportButton(ext)->isEnabled());
+  }
+
+  void openFileFillsMaterialTable() {
+    QSignalSpy loaded(panel_.get(), &qFEMesherPanelWidget::volumeLoaded);
+    QVERIFY2(panel_->openFile(phantomPath_), qPrintable(panel_->lastError()));
+    QCOMPARE(loaded.count(), 1);
+    const LabelVolume v = readLabelMap(phantomPath_.toStdString()).value();
+    const LabelMapSummary summary = summarizeLabelMap(v);
+    QTableWidget* t = panel_->materialTable();
+    QCOMPARE(t->rowCount(), 5);
+    int checked = 0;
+    for (const auto& s : summary.labels) {
+      if (s.id == 0) continue;
+      const int row = panel_->materialRow(s.id);
+      QVERIFY2(row >= 0, qPrintable(QString("label %1 not in the table").arg(s.id)));
+      QCOMPARE(t->item(row, qFEMesherPanelWidget::ColId)->text().toInt(), s.id);
+      QCOMPARE(t->item(row, qFEMesherPanelWidget::ColVoxels)->data(Qt::DisplayRole).toULongLong(),
+               qulonglong(s.voxels));
+      const QColor c = t->item(row, qFEMesherPanelWidget::ColColor)->data(Qt::UserRole).value<QColor>();
+      const Material* m = findMaterial(v.materials, s.id);
+      QVERIFY(m);
+      QVERIFY(std::abs(c.redF() - m->color[0]) < 0.01 && std::abs(c.greenF() - m->color[1]) < 0.01 &&
+              std::abs(c.blueF() - m->color[2]) < 0.01);
+      QCOMPARE(t->item(row, qFEMesherPanelWidget::ColName)->text(), QString::fromStdString(m->name));
+      checked += panel_->isMaterialIncluded(s.id);
+    }
+    QCOMPARE(checked, 5);
+    QVERIFY(panel_->runButton()->isEnabled());
+  }
+
+  void openingABadFileKeepsTheVolume() {
+    auto before = panel_->volume();
+    const QString missing = tmpFile(QStringLiteral("does_not_exist.nrrd"));
+    QVERIFY(!panel_->openFile(missing));
+    QVERIFY2(panel_->lastError().contains(QStringLiteral("does_not_exist.nrrd")),
+             qPrintable(panel_->lastError()));
+    QCOMPARE(panel_->volume().get(), before.get());
+    QCOMPARE(panel_->materialTable()->rowCount(), 5);
+  }
+
+  void presetsAndParameters() {
+    QVERIFY(panel_->applyPreset(QStringLiteral("coarse")));
+    QCOMPARE(panel_->currentPreset(), QStringLiteral("coarse"));
+    QCOMPARE(spin("edge_length_factor")->value(), presetParameters("coarse")->edgeLengthFactor);
+    QCOMPARE(panel_->parameters().edgeLengthFactor, presetParameters("coarse")->edgeLengthFactor);
+    QVERIFY(panel_->applyPreset(QStringLiteral("fine")));
+    QCOMPARE(panel_->parameters().edgeLengthFactor, presetParameters("fine")->edgeLengthFactor);
+    QVERIFY(!panel_->applyPreset(QStringLiteral("ultra")));
+    // Editing a value switches to Custom and lands in the struct.
+    spin("smoothing_sigma")->setValue(1.25);
+    QCOMPARE(panel_->currentPreset(), QStringLiteral("custom"));
+    QCOMPARE(panel_->parameters().smoothingSigma, 1.25);
+    spin("target_edge_length")->setValue(2.5);
+    QCOMPARE(panel_->parameters().targetEdgeLength, 2.5);
+    QCOMPARE(spin("target_edge_length")->suffix(), QStringLiteral(" mm"));
+    // Every descriptor has an editor with its help as tooltip; advanced ones sit in the group.
+    for (const auto& d : parameterDescriptors()) {
+      QWidget* e = panel_->parameterEditor(QString::fromStdString(d.key));
+      QVERIFY2(e, d.key.c_str());
+      QVERIFY2(e->toolTip().contains(QString::fromStdString(d.help).toHtmlEscaped().left(20)), d.key.c_str());
+      if (d.key == "particle_iterations")
+        QVERIFY(panel_->advancedGroup()->isAncestorOf(e));
+      if (d.key == "target_edge_length")
+        QVERIFY(!panel_->advancedGroup()->isAncestorOf(e));
+    }
+    // Back to the default preset.
+    QVERIFY(panel_->applyPreset(QStringLiteral("default")));
+    QCOMPARE(panel_->currentPreset(), QStringLiteral("default"));
+    QCOMPARE(parametersToJson(panel_->parameters()), parametersToJson(MeshingParameters{}));
+  }
+
+  void materialPropertiesGoIntoParameters() {
+    QTableWidget* t = panel_->materialTable();
+    const int row = panel_->materialRow(2);
+    auto* e = qobject_cast<QDoubleSpinBox*>(t->cellWidget(row, qFEMesherPanelWidget::ColE));
+    auto* nu = qobject_cast<QDoubleSpinBox*>(t->cellWidget(row, qFEMesherPanelWidget::ColNu));
+    QVERIFY(e && nu);
+    e->setValue(12345.0);
+    nu->setValue(0.21);
+    const MeshingParameters p = panel_->parameters();
+    QCOMPARE(p.materialProperties.size(), size_t(1));
+    QCOMPARE(p.materialProperties.at(2).youngsModulus, 12345.0);
+    QCOMPARE(p.materialProperties.at(2).poissonRatio, 0.21);
+  }
+
+  void saveAndLoadParametersThatTheCliAccepts() {
+    spin("smoothing_sigma")->setValue(0.6);
+    spin("min_voxels")->setValue(20);
+    const std::string saved = parametersToJson(panel_->parameters());
+    const QString file = tmpFile(QStringLiteral("params.json"));
+    QVERIFY2(panel_->saveParametersFile(file), qPrintable(panel_->lastError()));
+    panel_->setParameters(MeshingParameters{});
+    QVERIFY(parametersToJson(panel_->parameters()) != saved);
+    QVERIFY2(panel_->loadParametersFile(file), qPrintable(panel_->lastError()));
+    QCOMPARE(QString::fromStdString(parametersToJson(panel_->parameters())), QString::fromStdString(saved));
+    // A broken file is refused with a message naming it.
+    const QString broken = tmpFile(QStringLiteral("broken.json"));
+    {
+      QFile f(broken);
+      QVERIFY(f.open(QIODevice::WriteOnly));
+      f.write("{\"smoothing_sigma\": \"lots\"}");
+    }
+    QVERIFY(!panel_->loadParametersFile(broken));
+    QVERIFY(panel_->lastError().contains(QStringLiteral("broken.json")));
+    QCOMPARE(QString::fromStdString(parametersToJson(panel_->parameters())), QString::fromStdString(saved));
+    // The CLI reads the same file.
+    QProcess cli;
+    const QString out = tmpFile(QStringLiteral("cli.vtu"));
+    cli.start(QStringLiteral(FEMESHER_CLI),
+              {QStringLiteral("mesh"), phantomPath_, QStringLiteral("-o"), out,
+               QStringLiteral("--parameters"), file, QStringLiteral("--set"), QStringLiteral("edge_length_factor=3")});
+    QVERIFY(cli.waitForFinished(300000));
+    QVERIFY2(cli.exitCode() == 0, cli.readAllStandardError().constData());
+    QVERIFY(QFileInfo::exists(out));
+    QVERIFY(panel_->applyPreset(QStringLiteral("default")));
+  }
+
+  void cancelMidRun() {
+    // A long run: fine elements and many particle iterations.
+    QVERIFY(panel_->applyPreset(QStringLiteral("fine")));
+    spin("particle_iterations")->setValue(400);
+    QSignalSpy progress(panel_.get(), &qFEMesherPanelWidget::progressChanged);
+    QSignalSpy ended(panel_.get(), &qFEMesherPanelWidget::runEnded);
+    QVERIFY(panel_->run());
+    QCOMPARE(panel_->runState(), QStringLiteral("running"));
+    QVERIFY(!panel_->runButton()->isEnabled());
+    QVERIFY(panel_->cancelButton()->isEnabled());
+    // Wait until the particle system runs (the GUI keeps processing events meanwhile).
+    QTRY_VERIFY_WITH_TIMEOUT(
+        [&] {
+          for (const auto& args : progress)
+            if (args.at(0).toString() == QLatin1String("ParticleSystem")) return true;
+          return false;
+        }(),
+        120000);
+    QVERIFY(panel_->isRunning());
+    QVERIFY(panel_->progressBar()->format().contains(
+        qFEMesherPanelWidget::stageTitle(QStringLiteral("ParticleSystem"))));
+    panel_->cancel();
+    QVERIFY(waitForEnd(60000));
+    QCOMPARE(ended.count(), 1);
+    QCOMPARE(ended.at(0).at(0).toString(), QStringLiteral("canceled"));
+    QCOMPARE(panel_->runState(), QStringLiteral("canceled"));
+    QVERIFY(!panel_->result());
+    const double latency = panel_->runner()->lastCancelLatency();
+    qInfo("cancel took %.3f s", latency);
+    QVERIFY(latency >= 0);
+    if (latency > 1.0) qWarning("cancel took longer than a second (%.2f s)", latency);
+    QVERIFY(panel_->runButton()->isEnabled());
+    for (const QString& ext : panel_->exportExtensions())
+      QVERIFY(!panel_->exportButton(ext)->isEnabled());
+    QVERIFY(!panel_->exportMesh(tmpFile(QStringLiteral("nothing.vtu"))));
+    QVERIFY(!QFileInfo::exists(tmpFile(QStringLiteral("nothing.vtu"))));
+  }
+
+  void runToTheEndShowsQualityAndFidelity() {
+    QVERIFY(panel_->applyPreset(QStringLiteral("default")));
+    QSignalSpy succeeded(panel_.get(), &qFEMesherPanelWidget::runSucceeded);
+    QVERIFY(panel_->run());
+    QVERIFY(waitForEnd(300000));
+    QCOMPARE(panel_->runState(), QStringLiteral("succeeded"));
+    QCOMPARE(succeeded.count(), 1);
+    auto r = panel_->result();
+    QVERIFY(r);
+    QVERIFY(r->mesh.tets.size() > 100);
+    std::set<int32_t> labels(r->mesh.tetLabels.begin(), r->mesh.tetLabels.end());
+    QCOMPARE(labels, (std::set<int32_t>{1, 2, 3, 4, 5}));
+    QCOMPARE(panel_->progressBar()->value(), panel_->progressBar()->maximum());
+    QVERIFY(panel_->warningsList()->count() >= int(r->warnings.size()));
+    for (const QString& ext : panel_->exportExtensions())
+      QVERIFY(panel_->exportButton(ext)->isEnabled());
+
+    // Histograms: "All materials" + one entry per material; counts add up to the tets.
+    QCOMPARE(histograms_->materialCombo()->count(), 1 + int(r->quality.perMaterial.size()));
+    QCOMPARE(histograms_->selectedMaterial(), kExteriorLabel);
+    for (int i = 0; i < qFEMesherQualityHistogramWidget::plotCount(); ++i) {
+      QVERIFY(histograms_->plot(i)->hasData());
+      QCOMPARE(histograms_->plot(i)->totalCount(), r->mesh.tets.size());
+    }
+    const MetricSummary* aspect = r->quality.all.find("aspect_ratio");
+    QVERIFY(aspect);
+    QCOMPARE(histograms_->plot(0)->badCount(), aspect->badCount);
+    QVERIFY(histograms_->plot(0)->badText().startsWith(QString::number(aspect->badCount)));
+    // Per material.
+    for (const auto& pm : r->quality.perMaterial) {
+      QVERIFY(histograms_->selectMaterial(pm.label));
+      QCOMPARE(histograms_->plot(0)->totalCount(), pm.tets);
+      QCOMPARE(histograms_->plot(2)->badCount(), pm.find("min_dihedral")->badCount);
+    }
+    QVERIFY(histograms_->selectMaterial(kExteriorLabel));
+    // Fidelity table: one row per material, tets add up, Dice as reported.
+    QVERIFY(r->hasFidelity);
+    QTableWidget* f = histograms_->fidelityTable();
+    QCOMPARE(f->rowCount(), int(r->fidelity.materials.size()));
+    size_t tets = 0;
+    for (int row = 0; row < f->rowCount(); ++row) {
+      tets += f->item(row, 2)->text().toULongLong();
+      QCOMPARE(f->item(row, 3)->text(), QString::number(r->fidelity.materials[size_t(row)].dice, 'f', 4));
+    }
+    QCOMPARE(tets, r->mesh.tets.size());
+    // Paint once offscreen (exercises the QPainter code) and check it is not blank.
+    histograms_->resize(900, 500);
+    const QImage img = histograms_->grab().toImage();
+    QSet<QRgb> colours;
+    for (int y = 0; y < img.height(); y += 3)
+      for (int x = 0; x < img.width(); x += 3) colours.insert(img.pixel(x, y));
+    QVERIFY(colours.size() > 10);
+  }
+
+  void exportEveryFormat() {
+    auto r = panel_->result();
+    QVERIFY(r);
+    QSignalSpy exported(panel_.get(), &qFEMesherPanelWidget::meshExported);
+    const QStringList exts = panel_->exportExtensions();
+    QVERIFY(exts.size() >= 6);
+    for (const QString& ext : exts) {
+      const QString path = tmpFile(QStringLiteral("mesh") + ext);
+      QVERIFY2(panel_->exportMesh(path), qPrintable(panel_->lastError()));
+      QVERIFY(QFileInfo(path).size() > 100);
+    }
+    QCOMPARE(exported.count(), exts.size());
+    // Round trip of the VTU; Young's modulus of label 2 in the INP.
+    auto back = readMesh(tmpFile(QStringLiteral("mesh.vtu")).toStdString());
+    QVERIFY2(back.isOk(), back.status().message().c_str());
+    QCOMPARE(back->tets.size(), r->mesh.tets.size());
+    QFile inp(tmpFile(QStringLiteral("mesh.inp")));
+    QVERIFY(inp.open(QIODevice::ReadOnly));
+    const QByteArray text = inp.readAll();
+    QVERIFY2(text.contains("12345"), "material.2.E from the table is not in the INP");
+    // An unknown extension is refused and nothing is written.
+    QVERIFY(!panel_->exportMesh(tmpFile(QStringLiteral("mesh.xyz"))));
+    QVERIFY(!QFileInfo::exists(tmpFile(QStringLiteral("mesh.xyz"))));
+  }
+
+  void excludedMaterialIsNotMeshed() {
+    panel_->setMaterialIncluded(5, false);
+    QVERIFY(!panel_->isMaterialIncluded(5));
+    auto input = panel_->volumeToMesh();
+    QVERIFY(!findMaterial(input->materials, 5));
+    QVERIFY(std::find(input->labels.begin(), input->labels.end(), 5) == input->labels.end());
+    QVERIFY(std::find(panel_->volume()->labels.begin(), panel_->volume()->labels.end(), 5) !=
+            panel_->volume()->labels.end());  // the loaded volume itself is untouched
+    QVERIFY(panel_->run());
+    QVERIFY(waitForEnd(300000));
+    QCOMPARE(panel_->runState(), QStringLiteral("succeeded"));
+    std::set<int32_t> labels(panel_->result()->mesh.tetLabels.begin(),
+                             panel_->result()->mesh.tetLabels.end());
+    QCOMPARE(labels, (std::set<int32_t>{1, 2, 3, 4}));
+    panel_->setMaterialIncluded(5, true);
+    // All unticked: refused with a message.
+    for (int32_t id = 1; id <= 5; ++id) panel_->setMaterialIncluded(id, false);
+    QVERIFY(!panel_->run());
+    QVERIFY(panel_->lastError().contains(QStringLiteral("tick")));
+    for (int32_t id = 1; id <= 5; ++id) panel_->setMaterialIncluded(id, true);
+  }
+
+  void cleanupTestCase() {
+    if (panel_->isRunning()) {
+      panel_->cancel();
+      waitForEnd(60000);
+    }
+    panel_.reset();
+    histograms_.reset();
+  }
+};
+
+QTEST_MAIN(PanelWidgetTest)
+#include "test_PanelWidget.moc"
