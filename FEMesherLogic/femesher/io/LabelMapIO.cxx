@@ -6,6 +6,7 @@
 #include <itkImageFileWriter.h>
 #include <itkImageIOBase.h>
 #include <itkImageIOFactory.h>
+#include <itkMetaDataObject.h>
 
 #include <algorithm>
 #include <cmath>
@@ -290,8 +291,10 @@ Result<LabelVolume> readLabelMap(const std::string& path) {
                                "'" + path + "' holds label values outside the 32-bit integer range.");
 
   std::vector<SegmentInfo> segments;
+  // Segment names and colours: Slicer .seg.nrrd, and plain NRRD files written by FEMesher (which
+  // stores its material table with the same keys).
+  if (isSeg || ext == ".nrrd" || ext == ".nhdr") segments = parseSegments(path);
   if (isSeg) {
-    segments = parseSegments(path);
     if (layers > 1) {
       // Merge layers (interleaved components or layer-first 4-D: both store the layer index
       // fastest). Overlap (a voxel set in two layers) is an error.
@@ -372,7 +375,8 @@ Result<LabelVolume> readLabelMap(const std::string& path) {
 namespace {
 
 template <class T>
-Status writeTyped(const LabelVolume& g, const std::function<T(size_t)>& value, const std::string& path) {
+Status writeTyped(const LabelVolume& g, const std::function<T(size_t)>& value, const std::string& path,
+                  bool withMaterials = false) {
   using Image = itk::Image<T, 3>;
   auto image = Image::New();
   typename Image::RegionType region;
@@ -392,6 +396,22 @@ Status writeTyped(const LabelVolume& g, const std::function<T(size_t)>& value, c
   image->SetOrigin(origin);
   image->SetDirection(direction);
   image->Allocate();
+  if (withMaterials) {
+    // The material table, with Slicer's segmentation keys (names and colours survive a round trip
+    // through NRRD and Slicer shows them).
+    auto& dict = image->GetMetaDataDictionary();
+    int index = 0;
+    for (const auto& m : g.materials) {
+      const std::string key = "Segment" + std::to_string(index++) + "_";
+      std::ostringstream color;
+      color << m.color[0] << " " << m.color[1] << " " << m.color[2];
+      itk::EncapsulateMetaData<std::string>(dict, key + "ID", "Segment_" + std::to_string(m.id));
+      itk::EncapsulateMetaData<std::string>(dict, key + "Name", m.name);
+      itk::EncapsulateMetaData<std::string>(dict, key + "Color", color.str());
+      itk::EncapsulateMetaData<std::string>(dict, key + "LabelValue", std::to_string(m.id));
+      itk::EncapsulateMetaData<std::string>(dict, key + "Layer", "0");
+    }
+  }
   T* buf = image->GetBufferPointer();
   const size_t n = g.voxelCount();
   for (size_t i = 0; i < n; ++i) buf[i] = value(i);
@@ -416,10 +436,10 @@ Status writeLabelMap(const LabelVolume& volume, const std::string& path) {
     return {ErrorCode::InvalidArgument, "Cannot write '" + path + "': the label map is empty."};
   const auto [mn, mx] = std::minmax_element(volume.labels.begin(), volume.labels.end());
   if (*mn >= 0 && *mx <= 255)
-    return writeTyped<uint8_t>(volume, [&](size_t i) { return uint8_t(volume.labels[i]); }, path);
+    return writeTyped<uint8_t>(volume, [&](size_t i) { return uint8_t(volume.labels[i]); }, path, true);
   if (*mn >= 0 && *mx <= 65535)
-    return writeTyped<uint16_t>(volume, [&](size_t i) { return uint16_t(volume.labels[i]); }, path);
-  return writeTyped<int32_t>(volume, [&](size_t i) { return volume.labels[i]; }, path);
+    return writeTyped<uint16_t>(volume, [&](size_t i) { return uint16_t(volume.labels[i]); }, path, true);
+  return writeTyped<int32_t>(volume, [&](size_t i) { return volume.labels[i]; }, path, true);
 }
 
 Status writeScalarVolume(const LabelVolume& geometry, const std::vector<float>& values,
