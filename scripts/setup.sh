@@ -10,7 +10,7 @@ mkdir -p out/phantom
 ./build/bin/femesher phantom out/phantom/phantom.nrrd
 ./build/bin/femesher mesh out/phantom/phantom.nrrd \
   -o out/phantom/phantom.vtu -o out/phantom/phantom.inp -o out/phantom/phantom.msh \
-  -o out/phantom/phantom.mesh -o out/phantom/phantom.feb -o out/phantom/phantom.stl \
+  -o out/phantom/phantom.mesh -o out/phantom/phantom.feb -o out/phantom/phantom.stl -o out/phantom/phantom.vtk \
   --report out/phantom/report.json
 echo
 echo "Done. The phantom label map and its meshes are in $ROOT/out/phantom/:"

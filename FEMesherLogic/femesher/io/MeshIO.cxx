@@ -9,9 +9,11 @@
 #include <vtkIntArray.h>
 #include <vtkNew.h>
 #include <vtkPoints.h>
+#include <vtkSmartPointer.h>
 #include <vtkStringArray.h>
 #include <vtkUnstructuredGrid.h>
 #include <vtkXMLUnstructuredGridReader.h>
+#include <vtkUnstructuredGridWriter.h>
 #include <vtkXMLUnstructuredGridWriter.h>
 
 #include <algorithm>
@@ -71,12 +73,43 @@ Status writeText(const std::string& path, F&& body) {
   });
 }
 
+vtkSmartPointer<vtkUnstructuredGrid> toGrid(const TetMesh& m, const ExportOptions& o, bool fieldData);
+
 Status writeVtu(const TetMesh& m, const std::string& path, const ExportOptions& o) {
+  auto ug = toGrid(m, o, true);
+  return writeAtomically(path, [&](const std::string& tmp) {
+    vtkNew<vtkXMLUnstructuredGridWriter> w;
+    w->SetFileName(tmp.c_str());
+    w->SetInputData(ug);
+    w->SetDataModeToAppended();
+    w->SetCompressorTypeToZLib();
+    if (w->Write() != 1) return ioError(path);
+    return Status::ok();
+  });
+}
+
+/// Legacy VTK 4.2 with Slicer's header convention ("3D Slicer output. SPACE=LPS"): read by Slicer,
+/// ParaView and readers that do not understand string field data (meshio).
+Status writeLegacyVtk(const TetMesh& m, const std::string& path, const ExportOptions& o) {
+  auto ug = toGrid(m, o, false);
+  return writeAtomically(path, [&](const std::string& tmp) {
+    vtkNew<vtkUnstructuredGridWriter> w;
+    w->SetFileName(tmp.c_str());
+    w->SetInputData(ug);
+    w->SetFileVersion(42);
+    w->SetFileTypeToBinary();
+    w->SetHeader("3D Slicer output. SPACE=LPS");
+    if (w->Write() != 1) return ioError(path);
+    return Status::ok();
+  });
+}
+
+vtkSmartPointer<vtkUnstructuredGrid> toGrid(const TetMesh& m, const ExportOptions& o, bool fieldData) {
   vtkNew<vtkPoints> pts;
   pts->SetDataTypeToDouble();
   pts->SetNumberOfPoints(vtkIdType(m.points.size()));
   for (size_t i = 0; i < m.points.size(); ++i) pts->SetPoint(vtkIdType(i), m.points[i].data());
-  vtkNew<vtkUnstructuredGrid> ug;
+  auto ug = vtkSmartPointer<vtkUnstructuredGrid>::New();
   ug->SetPoints(pts);
   ug->Allocate(vtkIdType(m.tets.size()));
   for (const auto& t : m.tets) {
@@ -89,6 +122,7 @@ Status writeVtu(const TetMesh& m, const std::string& path, const ExportOptions& 
   for (size_t i = 0; i < m.tetLabels.size(); ++i) labels->SetValue(vtkIdType(i), m.tetLabels[i]);
   ug->GetCellData()->AddArray(labels);
   ug->GetCellData()->SetActiveScalars("labels");
+  if (!fieldData) return ug;
   vtkNew<vtkStringArray> space;
   space->SetName("SPACE");
   space->InsertNextValue("LPS");
@@ -113,15 +147,7 @@ Status writeVtu(const TetMesh& m, const std::string& path, const ExportOptions& 
     prov->InsertNextValue(o.provenance);
     ug->GetFieldData()->AddArray(prov);
   }
-  return writeAtomically(path, [&](const std::string& tmp) {
-    vtkNew<vtkXMLUnstructuredGridWriter> w;
-    w->SetFileName(tmp.c_str());
-    w->SetInputData(ug);
-    w->SetDataModeToAppended();
-    w->SetCompressorTypeToZLib();
-    if (w->Write() != 1) return ioError(path);
-    return Status::ok();
-  });
+  return ug;
 }
 
 /// Abaqus C3D4 face numbering (1-based): S1 = 1-2-3, S2 = 1-4-2, S3 = 2-4-3, S4 = 3-4-1.
@@ -550,7 +576,7 @@ ExportOptions exportOptionsFrom(const MeshingParameters& params) {
 }
 
 std::vector<std::string> supportedMeshExtensions() {
-  return {".vtu", ".inp", ".msh", ".mesh", ".feb", ".stl"};
+  return {".vtu", ".vtk", ".inp", ".msh", ".mesh", ".feb", ".stl"};
 }
 
 Status writeMesh(const TetMesh& mesh, const std::string& path, const ExportOptions& options) {
@@ -558,6 +584,7 @@ Status writeMesh(const TetMesh& mesh, const std::string& path, const ExportOptio
   if (mesh.tets.empty()) return {ErrorCode::InvalidArgument, "Cannot write '" + path + "': the mesh is empty."};
   try {
     if (ext == ".vtu") return writeVtu(mesh, path, options);
+    if (ext == ".vtk") return writeLegacyVtk(mesh, path, options);
     if (ext == ".inp") return writeInp(mesh, path, options);
     if (ext == ".msh") return writeMsh(mesh, path, options);
     if (ext == ".mesh") return writeMedit(mesh, path, options);
@@ -568,7 +595,7 @@ Status writeMesh(const TetMesh& mesh, const std::string& path, const ExportOptio
   }
   return {ErrorCode::InvalidArgument,
           "Cannot write '" + path + "': unknown extension '" + ext +
-              "'. Supported: .vtu .inp .msh .mesh .feb .stl"};
+              "'. Supported: .vtu .vtk .inp .msh .mesh .feb .stl"};
 }
 
 Result<TetMesh> readMesh(const std::string& path) {

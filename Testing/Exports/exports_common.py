@@ -1,0 +1,56 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Shared set-up of the export tests: mesh the phantom (and a real volume) once per test file with
+the femesher CLI and return the paths of every export and of the run report."""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+CLI = os.environ["FEMESHER_CLI"]
+DATA = os.environ.get("FEMESHER_DATA_DIR", "")
+IN_CI = os.environ.get("CI") == "true"
+EXTS = [".vtu", ".vtk", ".inp", ".msh", ".mesh", ".feb", ".stl"]
+
+
+class Checker:
+    def __init__(self):
+        self.passed, self.failed = [], []
+
+    def __call__(self, cond, msg):
+        (self.passed if cond else self.failed).append(msg)
+        print(("ok:   " if cond else "FAIL: ") + msg, flush=True)
+        return cond
+
+    def finish(self):
+        print("checks: %d passed, %d failed" % (len(self.passed), len(self.failed)))
+        sys.exit(1 if self.failed else 0)
+
+
+def run(args, **kw):
+    return subprocess.run(args, capture_output=True, text=True, stdin=subprocess.DEVNULL, **kw)
+
+
+def mesh_volume(name, source=None, extra=()):
+    """Meshes `source` (a label map path; None = the built-in phantom) into every format."""
+    tmp = tempfile.mkdtemp(prefix="exports_%s_" % name, dir=os.environ.get("FEMESHER_TMP"))
+    if source is None:
+        source = os.path.join(tmp, "phantom.nrrd")
+        r = run([CLI, "phantom", source])
+        if r.returncode != 0:
+            raise SystemExit("femesher phantom failed: " + r.stderr)
+    elif not os.path.exists(source):
+        if IN_CI:
+            raise SystemExit("FAIL: missing data file " + source)
+        print("missing data file %s: skipped outside CI" % source)
+        sys.exit(0)
+    base = os.path.join(tmp, name)
+    args = [CLI, "mesh", source, "--report", base + ".json", "-q"]
+    for e in EXTS:
+        args += ["-o", base + e]
+    args += list(extra)
+    r = run(args, timeout=1800)
+    if r.returncode != 0:
+        raise SystemExit("femesher mesh failed (%d): %s" % (r.returncode, r.stderr))
+    report = json.load(open(base + ".json"))
+    return base, report, source
