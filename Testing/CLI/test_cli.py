@@ -166,6 +166,46 @@ if os.path.exists(frog_mhd):
 elif IN_CI:
     check(False, "missing data file %s" % frog_mhd)
 
+many = os.path.join(TMP, "many_labels.nrrd")
+write_nrrd(many, (50, 50, 30), list(range(1, 75001)), "int", "i")
+expect_error(["info", many], "too-many-labels", "more than 65,535 labels")
+
+
+def write_seg(path, layers, names):
+    # Slicer .seg.nrrd: a 4-D NRRD, layer axis first ("list"), one segment per layer.
+    n = 8
+    vals = []
+    for k in range(n):
+        for j in range(n):
+            for i in range(n):
+                for layer in layers:
+                    vals.append(layer(i, j, k))
+    header = ("NRRD0004\ntype: unsigned char\ndimension: 4\nsizes: %d %d %d %d\n"
+              "kinds: list domain domain domain\nspace: left-posterior-superior\n"
+              "space directions: none (1,0,0) (0,1,0) (0,0,1)\nspace origin: (0,0,0)\n"
+              "encoding: raw\nendian: little\n") % (len(layers), n, n, n)
+    for idx, (name, value) in enumerate(names):
+        header += ("Segment%d_ID:=Segment_%d\nSegment%d_Name:=%s\nSegment%d_Color:=0.1 0.2 0.3\n"
+                   "Segment%d_LabelValue:=%d\nSegment%d_Layer:=%d\n") % (idx, idx, idx, name, idx, idx, value, idx, idx)
+    with open(path, "wb") as f:
+        f.write((header + "\n").encode())
+        f.write(bytes(vals))
+
+
+seg_ok = os.path.join(TMP, "two.seg.nrrd")
+write_seg(seg_ok, [lambda i, j, k: 1 if i < 4 and 1 < j < 7 and 1 < k < 7 else 0,
+                   lambda i, j, k: 2 if i >= 4 and 1 < j < 7 and 1 < k < 7 else 0],
+          [("femur", 1), ("tibia", 2)])
+r = run("info", seg_ok, "--json")
+ok = r.returncode == 0
+names = {l["id"]: l["name"] for l in json.loads(r.stdout)["labels"]} if ok else {}
+check(ok and names.get(1) == "femur" and names.get(2) == "tibia",
+      ".seg.nrrd segment names become the material table (%s %s)" % (names, r.stderr.strip()[:200]))
+seg_bad = os.path.join(TMP, "overlap.seg.nrrd")
+write_seg(seg_bad, [lambda i, j, k: 1 if i < 5 else 0, lambda i, j, k: 2 if i >= 3 else 0],
+          [("femur", 1), ("tibia", 2)])
+expect_error(["info", seg_bad], "overlapping-segments", "overlapping segments in a .seg.nrrd")
+
 # --- cancel (SIGINT) leaves no output ------------------------------------------------------------
 big = os.path.join(TMP, "big.nrrd")
 write_nrrd(big, (120, 120, 120), ball_values(120))
