@@ -40,7 +40,7 @@ LabelVolume makePhantom(const PhantomOptions& o) {
                  {2, "trabecular bone", {0.85, 0.62, 0.40}},
                  {3, "marrow", {0.78, 0.25, 0.25}},
                  {4, "cartilage", {0.35, 0.65, 0.92}},
-                 {5, "implant", {0.60, 0.62, 0.68}}};
+                 {5, "implant", {0.55, 0.50, 0.88}}};
   v.sourcePath = "phantom";
   return v;
 }

@@ -10,6 +10,8 @@
 #include <QSet>
 #include <QStringList>
 
+#include <femesher/Phantom.h>
+
 #include <cmath>
 #include <cstdio>
 
@@ -39,7 +41,12 @@ int main(int argc, char* argv[]) {
   }
   int failures = 0;
   std::vector<int> labels;
+  bool phantomColours = false;
   for (int i = 1; i < argc; ++i) {
+    if (QString::fromLocal8Bit(argv[i]) == QLatin1String("--phantom")) {
+      phantomColours = true;  // the sample's own material colours (from its .nrrd)
+      continue;
+    }
     if (QString::fromLocal8Bit(argv[i]) == QLatin1String("--labels") && i + 1 < argc) {
       labels.clear();
       for (const QString& l : QString::fromLocal8Bit(argv[++i]).split(',')) labels.push_back(l.toInt());
@@ -60,7 +67,11 @@ int main(int argc, char* argv[]) {
                 img.width(), img.height(), int(colours.size()));
     if (!big || !varied) ++failures;
     for (int l : labels) {
-      const int n = pixelsLike(img, femesher::defaultLabelColor(l));
+      std::array<double, 3> colour = femesher::defaultLabelColor(l);
+      if (phantomColours)
+        if (const femesher::Material* m = femesher::findMaterial(femesher::makePhantom().materials, l))
+          colour = m->color;
+      const int n = pixelsLike(img, colour);
       std::printf("     label %d colour: %d pixels%s\n", l, n, n >= kMinPixels ? "" : "  <- FAIL");
       if (n < kMinPixels) ++failures;
     }
