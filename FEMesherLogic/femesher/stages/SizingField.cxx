@@ -1,0 +1,229 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/stages/SizingField.h>
+
+#include <femesher/Parallel.h>
+#include <femesher/RunContext.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+namespace femesher {
+
+namespace {
+
+/// Largest float not above x.
+inline float floatNotAbove(double x) {
+  float f = float(x);
+  if (double(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  return f;
+}
+
+struct Neighbour {
+  int di, dj, dk;
+  double length;  // mm
+};
+
+/// The 13 neighbours that precede a voxel in raster order (x fastest, then y, then z).
+std::vector<Neighbour> precedingNeighbours(const Grid3& grid) {
+  std::vector<Neighbour> out;
+  for (int dk = -1; dk <= 1; ++dk)
+    for (int dj = -1; dj <= 1; ++dj)
+      for (int di = -1; di <= 1; ++di) {
+        const bool before = dk < 0 || (dk == 0 && (dj < 0 || (dj == 0 && di < 0)));
+        if (!before) continue;
+        out.push_back({di, dj, dk, std::sqrt(grid.squaredDistance(di, dj, dk))});
+      }
+  return out;
+}
+
+Grid3 gridOf(const LabelVolume& volume) {
+  Grid3 g;
+  g.dims = volume.dims;
+  g.spacing = volume.spacing;
+  return g;
+}
+
+}  // namespace
+
+float SizingField::at(const Vec3& c) const {
+  if (h.empty()) return 0.f;
+  int i0[3];
+  double t[3];
+  int i1[3];
+  for (int a = 0; a < 3; ++a) {
+    const int n = grid.dims[a];
+    double x = c[a] / grid.spacing[a];
+    x = std::clamp(x, 0.0, double(n - 1));
+    i0[a] = std::min(int(std::floor(x)), n - 1);
+    i1[a] = std::min(i0[a] + 1, n - 1);
+    t[a] = x - i0[a];
+  }
+  double v = 0;
+  for (int corner = 0; corner < 8; ++corner) {
+    const int bx = corner & 1, by = (corner >> 1) & 1, bz = (corner >> 2) & 1;
+    const double wgt = (bx ? t[0] : 1 - t[0]) * (by ? t[1] : 1 - t[1]) * (bz ? t[2] : 1 - t[2]);
+    if (wgt == 0) continue;
+    v += wgt * h[grid.index(bx ? i1[0] : i0[0], by ? i1[1] : i0[1], bz ? i1[2] : i0[2])];
+  }
+  return float(v);
+}
+
+void resolveSizingBounds(const SizingParameters& p, const Grid3& grid, double& hMin,
+                         double& hMax) {
+  auto bad = [](const std::string& what) {
+    throw Error(ErrorCode::InvalidArgument, "Sizing field: " + what);
+  };
+  if (!(p.scale > 0) || !std::isfinite(p.scale))
+    bad("scale must be > 0 (got " + std::to_string(p.scale) + "); try 0.5.");
+  if (!(p.gradation > 0) || !std::isfinite(p.gradation))
+    bad("gradation must be > 0 (got " + std::to_string(p.gradation) + "); try 0.4.");
+  if (!(p.hMin >= 0) || !std::isfinite(p.hMin))
+    bad("hMin must be >= 0 mm (0 = automatic); got " + std::to_string(p.hMin) + ".");
+  if (!(p.hMax >= 0) || !std::isfinite(p.hMax))
+    bad("hMax must be >= 0 mm (0 = automatic); got " + std::to_string(p.hMax) + ".");
+  const auto& s = grid.spacing;
+  hMin = p.hMin > 0 ? p.hMin : std::min({s[0], s[1], s[2]});
+  hMax = p.hMax > 0 ? p.hMax : 10.0 * (s[0] + s[1] + s[2]) / 3.0;
+  if (hMax < hMin)
+    bad("hMax (" + std::to_string(hMax) + " mm) is below hMin (" + std::to_string(hMin) +
+        " mm); raise hMax or lower hMin.");
+}
+
+std::vector<float> localFeatureSize(const Grid3& grid, const std::vector<uint8_t>& medialMask,
+                                    int threads, RunContext* ctx) {
+  const std::vector<uint32_t> ft = featureTransform(grid, medialMask, threads, ctx);
+  return featureDistances(grid, ft, threads);
+}
+
+int limitGradation(const Grid3& grid, std::vector<float>& h, double L, RunContext* ctx) {
+  if (h.size() != grid.size())
+    throw Error(ErrorCode::InvalidArgument, "limitGradation: field and grid sizes differ.");
+  const auto nbs = precedingNeighbours(grid);
+  const int nx = grid.dims[0], ny = grid.dims[1], nz = grid.dims[2];
+  std::vector<double> step(nbs.size());
+  std::vector<long long> offset(nbs.size());
+  for (size_t n = 0; n < nbs.size(); ++n) {
+    step[n] = L * nbs[n].length;
+    offset[n] = nbs[n].di + (long long)nx * (nbs[n].dj + (long long)ny * nbs[n].dk);
+  }
+  int sweeps = 0;
+  for (;;) {
+    bool changed = false;
+    // sign = +1: forward sweep, neighbours at -offset (preceding); -1: backward, at +offset.
+    for (int sign : {1, -1}) {
+      ++sweeps;
+      for (int kk = 0; kk < nz; ++kk) {
+        if (ctx) ctx->checkCancel();
+        const int k = sign > 0 ? kk : nz - 1 - kk;
+        for (int jj = 0; jj < ny; ++jj) {
+          const int j = sign > 0 ? jj : ny - 1 - jj;
+          for (int ii = 0; ii < nx; ++ii) {
+            const int i = sign > 0 ? ii : nx - 1 - ii;
+            const size_t v = grid.index(i, j, k);
+            double hv = h[v];
+            bool lowered = false;
+            for (size_t n = 0; n < nbs.size(); ++n) {
+              const int ni = i - sign * nbs[n].di, nj = j - sign * nbs[n].dj,
+                        nk = k - sign * nbs[n].dk;
+              if (ni < 0 || nj < 0 || nk < 0 || ni >= nx || nj >= ny || nk >= nz) continue;
+              const double cand = double(h[v - sign * offset[n]]) + step[n];
+              if (cand < hv) {
+                hv = cand;
+                lowered = true;
+              }
+            }
+            if (lowered) {
+              h[v] = floatNotAbove(hv);
+              changed = true;
+            }
+          }
+        }
+      }
+    }
+    if (!changed) break;
+  }
+  return sweeps;
+}
+
+Result<SizingField> computeSizingField(const LabelVolume& volume, const SizingParameters& params,
+                                       RunContext& ctx) {
+  try {
+    MedialAxisParameters mp;
+    mp.pruning = params.pruning;
+    mp.gamma = params.gamma;
+    mp.gammaConstant = params.gammaConstant;
+    mp.threads = params.threads;
+    double hMin = 0, hMax = 0;
+    resolveSizingBounds(params, gridOf(volume), hMin, hMax);  // fail early
+    if (volume.voxelCount() == 0)
+      return Status(ErrorCode::InvalidArgument, "Sizing field: the label map has no voxels.");
+    const LabelMedialAxes axes = computeAllMedialAxes(volume, mp, &ctx, 0.0, 0.6);
+    return computeSizingField(volume, axes, params, ctx);
+  } catch (const Error& e) {
+    return e.status();
+  }
+}
+
+Result<SizingField> computeSizingField(const LabelVolume& volume, const LabelMedialAxes& axes,
+                                       const SizingParameters& params, RunContext& ctx) {
+  try {
+    SizingField field;
+    field.grid = gridOf(volume);
+    const Grid3& grid = field.grid;
+    resolveSizingBounds(params, grid, field.hMin, field.hMax);
+    const size_t n = grid.size();
+    if (n == 0) return Status(ErrorCode::InvalidArgument, "Sizing field: the label map has no voxels.");
+    if (volume.labels.size() != n || axes.unionMask.size() != n)
+      return Status(ErrorCode::InvalidArgument,
+                    "Sizing field: the label map and its medial axes do not have the same size.");
+    field.medialVoxels = axes.voxelCount();
+    ctx.progress(0.6);
+    const std::vector<float> lfs = localFeatureSize(grid, axes.unionMask, params.threads, &ctx);
+    ctx.progress(0.75);
+
+    const bool meshBorder = volume.hasNoBackground();
+    const int nx = grid.dims[0], ny = grid.dims[1], nz = grid.dims[2];
+    const float fMax = float(field.hMax);
+    field.h.assign(n, fMax);
+    std::vector<size_t> interfaceCount(size_t(nz), 0);
+    parallelFor(size_t(nz), params.threads, [&](size_t b, size_t e, int) {
+      ctx.checkCancel();
+      for (size_t kk = b; kk < e; ++kk) {
+        const int k = int(kk);
+        for (int j = 0; j < ny; ++j)
+          for (int i = 0; i < nx; ++i) {
+            const size_t v = grid.index(i, j, k);
+            const int32_t l = volume.labels[v];
+            bool isInterface = !params.interfacesOnly;
+            if (!isInterface) {
+              const bool border = i == 0 || j == 0 || k == 0 || i == nx - 1 || j == ny - 1 ||
+                                  k == nz - 1;
+              if (border && (l != 0 || meshBorder)) isInterface = true;
+              static const int d[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0},
+                                          {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+              for (int q = 0; q < 6 && !isInterface; ++q) {
+                const int a = i + d[q][0], bb = j + d[q][1], c = k + d[q][2];
+                if (a < 0 || bb < 0 || c < 0 || a >= nx || bb >= ny || c >= nz) continue;
+                if (volume.labels[grid.index(a, bb, c)] != l) isInterface = true;
+              }
+            }
+            if (!isInterface) continue;
+            ++interfaceCount[kk];
+            const double h0 = params.scale * double(lfs[v]);  // +inf when no axis at all
+            field.h[v] = float(std::clamp(h0, field.hMin, field.hMax));
+          }
+      }
+    });
+    for (size_t c : interfaceCount) field.interfaceVoxels += c;
+    ctx.progress(0.8);
+    limitGradation(grid, field.h, params.gradation, &ctx);
+    ctx.progress(1.0);
+    return field;
+  } catch (const Error& e) {
+    return e.status();
+  }
+}
+
+}  // namespace femesher

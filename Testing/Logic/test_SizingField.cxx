@@ -1,0 +1,169 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// Sizing field: local feature size, clamp, gradation and the thin-versus-thick behaviour.
+#include <femesher/RunContext.h>
+#include <femesher/Status.h>
+#include <femesher/Types.h>
+#include <femesher/stages/SizingField.h>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+using namespace femesher;
+
+namespace {
+
+/// Background, a thin plate (label 3, three voxels = 1.5 mm thick) and a big ball (label 5).
+LabelVolume plateAndBall() {
+  LabelVolume vol;
+  vol.dims = {{56, 40, 40}};
+  vol.spacing = {{0.5, 0.5, 0.5}};
+  vol.labels.assign(vol.voxelCount(), 0);
+  for (int k = 0; k < 40; ++k)
+    for (int j = 0; j < 40; ++j)
+      for (int i = 0; i < 56; ++i) {
+        int32_t l = 0;
+        if (i >= 5 && i <= 7 && j >= 6 && j <= 33 && k >= 6 && k <= 33) l = 3;
+        if ((i - 32) * (i - 32) + (j - 20) * (j - 20) + (k - 20) * (k - 20) <= 15 * 15) l = 5;
+        vol.labels[vol.index(i, j, k)] = l;
+      }
+  return vol;
+}
+
+void expectGradation(const Grid3& g, const std::vector<float>& h, double L) {
+  size_t violations = 0;
+  for (int k = 0; k < g.dims[2]; ++k)
+    for (int j = 0; j < g.dims[1]; ++j)
+      for (int i = 0; i < g.dims[0]; ++i)
+        for (int dk = -1; dk <= 1; ++dk)
+          for (int dj = -1; dj <= 1; ++dj)
+            for (int di = -1; di <= 1; ++di) {
+              if (!g.inside(i + di, j + dj, k + dk)) continue;
+              const double d = std::sqrt(g.squaredDistance(di, dj, dk));
+              if (double(h[g.index(i, j, k)]) >
+                  double(h[g.index(i + di, j + dj, k + dk)]) + L * d + 1e-6)
+                ++violations;
+            }
+  EXPECT_EQ(violations, 0u);
+}
+
+}  // namespace
+
+TEST(SizingField, LocalFeatureSizeIsDistanceToMedialVoxels) {
+  Grid3 g;
+  g.dims = {{12, 9, 7}};
+  g.spacing = {{0.7, 0.36, 0.36}};
+  std::vector<uint8_t> mask(g.size(), 0);
+  mask[g.index(2, 3, 1)] = mask[g.index(9, 7, 5)] = 1;
+  const auto lfs = localFeatureSize(g, mask, 2);
+  for (size_t v = 0; v < g.size(); ++v) {
+    const double ref = std::sqrt(
+        std::min(g.squaredDistance(v, g.index(2, 3, 1)), g.squaredDistance(v, g.index(9, 7, 5))));
+    ASSERT_NEAR(lfs[v], ref, 1e-5);
+  }
+  const auto none = localFeatureSize(g, std::vector<uint8_t>(g.size(), 0));
+  EXPECT_TRUE(std::isinf(none[0]));
+}
+
+TEST(SizingField, GradationLimitIsExactAndOnlyLowers) {
+  Grid3 g;
+  g.dims = {{17, 13, 11}};
+  g.spacing = {{0.7, 0.36, 0.5}};
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(0.2f, 9.f);
+  std::vector<float> h(g.size());
+  for (auto& x : h) x = u(rng);
+  const auto before = h;
+  limitGradation(g, h, 0.3);
+  expectGradation(g, h, 0.3);
+  for (size_t v = 0; v < h.size(); ++v) ASSERT_LE(h[v], before[v]);
+  // A single small seed grows by L per mm along 26-neighbour paths.
+  std::vector<float> one(g.size(), 100.f);
+  one[g.index(0, 0, 0)] = 1.f;
+  limitGradation(g, one, 0.5);
+  EXPECT_NEAR(one[g.index(10, 0, 0)], 1.0 + 0.5 * 7.0, 1e-5);
+  expectGradation(g, one, 0.5);
+}
+
+TEST(SizingField, ThinPlateSmallBigBallLarge) {
+  const LabelVolume vol = plateAndBall();
+  RunContext ctx;
+  SizingParameters p;
+  p.hMax = 8.0;
+  const auto result = computeSizingField(vol, p, ctx);
+  ASSERT_TRUE(result.isOk()) << result.status().message();
+  const SizingField& f = result.value();
+  EXPECT_DOUBLE_EQ(f.hMin, 0.5);  // auto: 1 x min spacing
+  EXPECT_DOUBLE_EQ(f.hMax, 8.0);
+  ASSERT_EQ(f.h.size(), vol.voxelCount());
+  for (float x : f.h) {
+    ASSERT_GE(x, float(f.hMin) * (1 - 1e-6f));
+    ASSERT_LE(x, float(f.hMax) * (1 + 1e-6f));
+  }
+  expectGradation(f.grid, f.h, p.gradation);
+  // Thin plate: its mid-sheet is medial, lfs = 0.5 mm on its faces -> h = hMin there.
+  EXPECT_NEAR(f.h[vol.index(5, 20, 20)], f.hMin, 1e-6);
+  EXPECT_NEAR(f.h[vol.index(7, 20, 20)], f.hMin, 1e-6);
+  EXPECT_LE(f.h[vol.index(6, 20, 20)], f.hMin + p.gradation * 0.5 + 1e-6);
+  // Ball of radius 7.5 mm: surface h = scale x lfs, where lfs is bounded by the ball's own axis
+  // (its centre, 7.5 mm away) and by the background's axis in the gaps around it (~2.5 mm); the
+  // interior grows away from the surface.
+  const float surface = f.h[vol.index(32 - 15, 20, 20)];
+  const float centre = f.h[vol.index(32, 20, 20)];
+  EXPECT_GT(surface, 0.9f);
+  EXPECT_LT(surface, 0.5f * 7.5f + 0.5f);
+  EXPECT_GT(centre, surface + 0.3 * p.gradation * 7.5);
+  EXPECT_GT(centre, 5 * f.hMin);
+  // Trilinear lookup reproduces grid values at voxel centres.
+  EXPECT_FLOAT_EQ(f.at({32 * 0.5, 20 * 0.5, 20 * 0.5}), centre);
+  EXPECT_GT(f.medialVoxels, 0u);
+  EXPECT_GT(f.interfaceVoxels, 0u);
+}
+
+TEST(SizingField, TrilinearAt) {
+  SizingField f;
+  f.grid.dims = {{4, 3, 2}};
+  f.grid.spacing = {{2.0, 1.0, 0.5}};
+  f.h.resize(f.grid.size());
+  for (int k = 0; k < 2; ++k)
+    for (int j = 0; j < 3; ++j)
+      for (int i = 0; i < 4; ++i) f.h[f.grid.index(i, j, k)] = float(1 + i + 2 * j + 3 * k);
+  // Linear in the index: trilinear interpolation is exact.
+  EXPECT_NEAR(f.at({3.0, 1.5, 0.25}), 1 + 1.5 + 3.0 + 1.5, 1e-5);
+  EXPECT_NEAR(f.at({-5, -5, -5}), 1.f, 1e-6);        // clamped
+  EXPECT_NEAR(f.at({100, 100, 100}), 1 + 3 + 4 + 3, 1e-5);
+}
+
+TEST(SizingField, BadParametersAndCancel) {
+  const LabelVolume vol = plateAndBall();
+  RunContext ctx;
+  SizingParameters p;
+  p.scale = 0;
+  EXPECT_EQ(computeSizingField(vol, p, ctx).status().code(), ErrorCode::InvalidArgument);
+  p = SizingParameters{};
+  p.hMin = 5;
+  p.hMax = 2;
+  EXPECT_EQ(computeSizingField(vol, p, ctx).status().code(), ErrorCode::InvalidArgument);
+  p = SizingParameters{};
+  p.gradation = -1;
+  EXPECT_EQ(computeSizingField(vol, p, ctx).status().code(), ErrorCode::InvalidArgument);
+  LabelVolume empty;
+  EXPECT_EQ(computeSizingField(empty, SizingParameters{}, ctx).status().code(),
+            ErrorCode::InvalidArgument);
+  RunContext canceled;
+  canceled.cancel();
+  EXPECT_EQ(computeSizingField(vol, SizingParameters{}, canceled).status().code(),
+            ErrorCode::Canceled);
+}
+
+TEST(SizingField, OnlyBackgroundGivesHMax) {
+  LabelVolume vol;
+  vol.dims = {{6, 5, 4}};
+  vol.labels.assign(vol.voxelCount(), 0);
+  RunContext ctx;
+  const auto r = computeSizingField(vol, SizingParameters{}, ctx);
+  ASSERT_TRUE(r.isOk());
+  for (float x : r.value().h) EXPECT_FLOAT_EQ(x, 10.f);  // auto hMax = 10 x mean spacing
+}
