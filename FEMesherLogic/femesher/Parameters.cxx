@@ -58,6 +58,32 @@ const std::vector<Binding>& bindings() {
          "target_edge_length is 0.", false},
         [](MeshingParameters& p, double x) { p.edgeLengthFactor = x; },
         [](const MeshingParameters& p) { return p.edgeLengthFactor; });
+    add({"sizing_scale", "double", "", "", 0.05, 5, "Detail (sizing scale)",
+         "Adaptive sizing: target edge length = sizing_scale x local feature size (distance to the "
+         "nearest medial axis). Smaller = more detail in thin and curved parts.", false},
+        [](MeshingParameters& p, double x) { p.sizingScale = x; },
+        [](const MeshingParameters& p) { return p.sizingScale; });
+    add({"h_min", "double", "mm", "", 0, 1e6, "Smallest element",
+         "Adaptive sizing: lower bound of the edge length in mm (0 = half the uniform edge length).",
+         true},
+        [](MeshingParameters& p, double x) { p.sizingHMin = x; },
+        [](const MeshingParameters& p) { return p.sizingHMin; });
+    add({"h_max", "double", "mm", "", 0, 1e6, "Largest element",
+         "Adaptive sizing: upper bound of the edge length in mm (0 = edge_length_factor x 2.5 x "
+         "the mean voxel spacing).", true},
+        [](MeshingParameters& p, double x) { p.sizingHMax = x; },
+        [](const MeshingParameters& p) { return p.sizingHMax; });
+    add({"gradation", "double", "", "", 0.01, 10, "Size gradation",
+         "Adaptive sizing: the edge length grows at most this many mm per mm away from fine parts.",
+         true},
+        [](MeshingParameters& p, double x) { p.gradation = x; },
+        [](const MeshingParameters& p) { return p.gradation; });
+    add({"volume_sizing", "bool", "", "", 0, 1, "Size the interior too",
+         "Adaptive sizing: hand the sizing field to TetGen (-m) so the interior follows it too "
+         "(more tets); off: the interior is graded from the surface by TetGen's quality bound.",
+         true},
+        [](MeshingParameters& p, double x) { p.volumeSizing = x != 0; },
+        [](const MeshingParameters& p) { return p.volumeSizing ? 1.0 : 0.0; });
     add({"particle_iterations", "int", "", "", 0, 1000, "Particle iterations",
          "Maximum iterations of the surface particle system (it stops earlier when converged); "
          "0 uses the initial samples as they are.", true},
@@ -114,6 +140,19 @@ const std::vector<Binding>& bindings() {
     return v;
   }();
   return b;
+}
+
+ParameterDescriptor sizingDescriptor() {
+  ParameterDescriptor d;
+  d.key = "sizing";
+  d.type = "choice";
+  d.defaultValue = "adaptive";
+  d.label = "Sizing";
+  d.help = "'adaptive': element size follows the local feature size from the Integer Medial Axis "
+           "(small in thin and curved parts, large where the shape is simple); 'uniform': one "
+           "size (target_edge_length or edge_length_factor) everywhere.";
+  d.choices = {"adaptive", "uniform"};
+  return d;
 }
 
 ParameterDescriptor surfaceMesherDescriptor() {
@@ -193,6 +232,7 @@ const std::vector<ParameterDescriptor>& parameterDescriptors() {
   static const std::vector<ParameterDescriptor> d = [] {
     std::vector<ParameterDescriptor> v;
     for (const auto& b : bindings()) v.push_back(b.desc);
+    v.push_back(sizingDescriptor());
     v.push_back(surfaceMesherDescriptor());
     return v;
   }();
@@ -201,6 +241,13 @@ const std::vector<ParameterDescriptor>& parameterDescriptors() {
 
 Status setParameter(MeshingParameters& params, const std::string& key, const std::string& value) {
   if (key.rfind("material.", 0) == 0) return setMaterialParameter(params, key, value);
+  if (key == "sizing") {
+    if (value != "adaptive" && value != "uniform")
+      return {ErrorCode::InvalidArgument,
+              "Parameter 'sizing' = '" + value + "': use 'adaptive' or 'uniform'"};
+    params.sizing = value;
+    return Status::ok();
+  }
   if (key == "surface_mesher") {
     if (value != "delaunay" && value != "ldt")
       return {ErrorCode::InvalidArgument,
@@ -230,6 +277,7 @@ Status setParameter(MeshingParameters& params, const std::string& key, const std
 
 std::string getParameter(const MeshingParameters& params, const std::string& key) {
   if (key == "surface_mesher") return params.surfaceMesher;
+  if (key == "sizing") return params.sizing;
   const Binding* b = findBinding(key);
   if (!b) return {};
   const double v = b->get(params);
@@ -263,6 +311,7 @@ std::string parametersToJson(const MeshingParameters& params) {
     else j[b.desc.key] = v;
   }
   j["surface_mesher"] = params.surfaceMesher;
+  j["sizing"] = params.sizing;
   json mats = json::object();
   for (const auto& [label, m] : params.materialProperties)
     mats[std::to_string(label)] = {{"E", m.youngsModulus}, {"nu", m.poissonRatio},
@@ -331,6 +380,10 @@ Result<MeshingParameters> loadParametersFile(const std::string& path,
 
 Status validate(const MeshingParameters& p) {
   if (p.minVoxels < 1) return {ErrorCode::InvalidArgument, "min_voxels must be >= 1"};
+  if (p.sizing != "adaptive" && p.sizing != "uniform")
+    return {ErrorCode::InvalidArgument, "sizing must be 'adaptive' or 'uniform'"};
+  if (p.sizingHMax > 0 && p.sizingHMin > p.sizingHMax)
+    return {ErrorCode::InvalidArgument, "h_min must not exceed h_max"};
   if (p.surfaceMesher != "delaunay" && p.surfaceMesher != "ldt")
     return {ErrorCode::InvalidArgument, "surface_mesher must be 'delaunay' or 'ldt'"};
   if (p.smoothingSigma < 0) return {ErrorCode::InvalidArgument, "smoothing_sigma must be >= 0"};

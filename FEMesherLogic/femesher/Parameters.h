@@ -42,6 +42,18 @@ struct MeshingParameters {
   /// targetEdgeLength == 0). Presets: coarse 3, default 2, fine 1.25.
   double edgeLengthFactor = 2.0;
 
+  // --- Sizing field (medial axis) ----------------------------------------------------------------
+  /// "adaptive": target edge length from the Integer Medial Axis local feature size
+  /// (h = clamp(sizing_scale x lfs, h_min, h_max), graded); "uniform": one edge length everywhere.
+  std::string sizing = "adaptive";
+  double sizingScale = 1.5;   ///< epsilon: h = epsilon x local feature size
+  double sizingHMin = 0;      ///< mm; 0 = automatic (half the uniform edge length)
+  double sizingHMax = 0;      ///< mm; 0 = automatic (edge_length_factor x 2.5 x mean spacing)
+  double gradation = 0.4;     ///< Lipschitz bound: h grows at most this many mm per mm
+  /// Hand the sizing field to TetGen as point metrics (-m) so the interior follows it too (more
+  /// tets); off: the interior is graded by TetGen's quality bound from the surface.
+  bool volumeSizing = false;
+
   // --- Junctions and particle system ---------------------------------------------------------
   /// Particle-system iterations (0 = use the Poisson-disk samples as they are).
   int particleIterations = 15;

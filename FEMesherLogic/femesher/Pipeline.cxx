@@ -6,6 +6,8 @@
 #include <femesher/stages/Junctions.h>
 #include <femesher/stages/LabelPreprocess.h>
 #include <femesher/stages/LocalDelaunay.h>
+#include <femesher/stages/MedialAxis.h>
+#include <femesher/stages/SizingField.h>
 #include <femesher/stages/ParticleSystem.h>
 #include <femesher/stages/SurfaceSampling.h>
 #include <femesher/stages/VolumeMesh.h>
@@ -122,9 +124,16 @@ json geometryJson(const LabelVolume& in) {
 
 std::vector<std::pair<std::string, double>> pipelineStagePlan(const MeshingParameters& params) {
   std::vector<std::pair<std::string, double>> plan = {
-      {"LabelPreprocess", 2}, {"IndicatorFunctions", 12}, {"SurfaceSampling", 8},
-      {"Junctions", 5},       {"ParticleSystem", 20},     {"BoundaryMesh", 10},
-      {"VolumeMesh", 30},     {"Quality", 3}};
+      {"LabelPreprocess", 2}, {"IndicatorFunctions", 10}, {"MedialAxis", 6},
+      {"SizingField", 4},     {"SurfaceSampling", 8},     {"Junctions", 5},
+      {"ParticleSystem", 18}, {"BoundaryMesh", 10},       {"VolumeMesh", 28},
+      {"Quality", 3}};
+  if (params.sizing != "adaptive")
+    plan.erase(std::remove_if(plan.begin(), plan.end(),
+                              [](const auto& p) {
+                                return p.first == "MedialAxis" || p.first == "SizingField";
+                              }),
+               plan.end());
   if (params.computeFidelity) plan.emplace_back("Fidelity", 10);
   return plan;
 }
@@ -157,18 +166,59 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
       field = std::make_unique<IndicatorField>(computeIndicatorFunctions(vol, ip, ctx));
       st.done();
     }
-    // 3. Isosurface + sampling.
+    // 3. Medial axis and sizing field (adaptive sizing), on the cropped, compacted grid.
+    SizingFunction sizing = [h](const Vec3&) { return h; };
+    std::shared_ptr<SizingField> sizingField;
+    size_t medialVoxels = 0;
+    if (params.sizing == "adaptive") {
+      LabelVolume work;
+      work.dims = vol.dims;
+      work.spacing = vol.spacing;
+      work.labels.assign(vol.labels.begin(), vol.labels.end());
+      LabelMedialAxes axes;
+      {
+        StageScope st(ctx, result.timings, "MedialAxis");
+        MedialAxisParameters mp;
+        mp.threads = ctx.threads();
+        axes = computeAllMedialAxes(work, mp, &ctx);
+        medialVoxels = axes.voxelCount();
+        st.done();
+      }
+      {
+        StageScope st(ctx, result.timings, "SizingField");
+        SizingParameters sp;
+        sp.scale = params.sizingScale;
+        // Automatic bounds follow the uniform edge length (so presets and edge_length_factor keep
+        // their meaning): from half of it in thin and curved parts to 2.5 x in simple ones.
+        sp.hMin = params.sizingHMin > 0 ? params.sizingHMin : 0.5 * h;
+        sp.hMax = params.sizingHMax > 0 ? params.sizingHMax : 2.5 * h;
+        if (sp.hMin > 0 && sp.hMin > sp.hMax) sp.hMin = sp.hMax;
+        sp.gradation = params.gradation;
+        sp.threads = ctx.threads();
+        auto sf = computeSizingField(work, axes, sp, ctx);
+        if (!sf) throw Error(sf.status().code(), sf.status().message());
+        sizingField = std::make_shared<SizingField>(std::move(sf.value()));
+        // The field lives in the working grid's frame (spacing x local index).
+        const Vec3 shift{vol.offset[0] * vol.spacing[0], vol.offset[1] * vol.spacing[1],
+                         vol.offset[2] * vol.spacing[2]};
+        sizing = [sizingField, shift](const Vec3& c) {
+          return double(sizingField->at({c[0] - shift[0], c[1] - shift[1], c[2] - shift[2]}));
+        };
+        st.done();
+      }
+    }
+    // 4. Isosurface + sampling.
     SurfaceSamples samples;
     {
       StageScope st(ctx, result.timings, "SurfaceSampling");
       SurfaceSamplingParameters sp;
       sp.targetEdgeLength = h;
+      if (sizingField) sp.sizing = sizing;
       sp.seed = params.seed;
       samples = sampleInterfaces(*field, input, sp, ctx);
       st.done();
     }
-    const SizingFunction sizing = [h](const Vec3&) { return h; };
-    // 4. Junctions (crossing seeds).
+    // 5. Junctions (crossing seeds).
     Junctions junctions;
     {
       StageScope st(ctx, result.timings, "Junctions");
@@ -263,6 +313,10 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
       vp.maxTetVolume = params.maxTetVolume;
       vp.preserveInterfaces = params.preserveInterfaces;
       vp.optimizationLevel = params.optimizationLevel;
+      if (sizingField && params.volumeSizing) {
+        vp.pointSizes.reserve(surface.points.size());
+        for (const auto& p : surface.points) vp.pointSizes.push_back(sizing(p));
+      }
       vm = buildVolumeMesh(surface, vp, ctx);
       st.done();
     }
@@ -297,7 +351,16 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
       result.hasFidelity = true;
       st.done();
     }
+    double sizeMin = h, sizeMax = h;
+    if (sizingField && !sizingField->h.empty()) {
+      const auto [mn, mx] = std::minmax_element(sizingField->h.begin(), sizingField->h.end());
+      sizeMin = *mn;
+      sizeMax = *mx;
+    }
     result.counts = {{"target_edge_length_mm", h},
+                     {"sizing_min_mm", sizeMin},
+                     {"sizing_max_mm", sizeMax},
+                     {"medial_axis_voxels", double(medialVoxels)},
                      {"working_grid_voxels", double(vol.labels.size())},
                      {"materials", double(vol.materialCount())},
                      {"isosurface_triangles", double(samples.isosurfaceTriangles)},

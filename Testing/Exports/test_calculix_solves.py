@@ -1,75 +1,149 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""CalculiX (Debian calculix-ccx) solves the Abaqus INP export of the phantom: a linear static step
-with the nodes of the bottom face fixed and the top face loaded. Displacements must be finite and
-not all zero, and the top must move in the load direction."""
+"""CalculiX (Debian calculix-ccx) solves the Abaqus INP export of the phantom. A driver deck
+*INCLUDEs the export unchanged and adds two linear static steps:
+  1. the BOUNDARY nodes of the bottom face fixed, a 1 kN *CLOAD pushing the top face nodes down:
+     the run must end without *ERROR, displacements finite, not all zero, the top moving down,
+     and the reaction at the fixed nodes balancing the load;
+  2. (a second deck) a uniform pressure *DLOAD on every OUTER_<label> element surface (together
+     the closed outer boundary), the body held by a statically determinate 3-2-1 support on three
+     interior nodes: a closed surface under uniform pressure has zero resultant, so the support
+     reaction must be ~0 relative to pressure x area; wrong face numbers (S1..S4) or a missing
+     patch would break that."""
 import math
 import os
 import re
 import shutil
 import subprocess
 
+import numpy as np
+
 from exports_common import IN_CI, Checker, mesh_volume
 
 check = Checker()
 ccx = shutil.which("ccx")
 if not ccx:
-    check(not IN_CI and False, "ccx (calculix-ccx) is installed")
+    check(not IN_CI and False, "ccx (Debian package calculix-ccx) is installed")
     check.finish()
 
-base, report, _ = mesh_volume("ccx", extra=["--set", "material.5.E=110000", "--set", "material.5.nu=0.34",
-                                            "--set", "default.E=15000"])
-inp = open(base + ".inp").read()
-check("*SOLID SECTION" in inp and "*ELASTIC" in inp, "INP has sections and elastic materials")
-check("110000" in inp, "per-material Young's modulus reaches the INP")
+# A coarser sizing keeps the solve quick; materials differ per label.
+base, report, _ = mesh_volume("ccx", extra=["--set", "sizing_scale=1.5", "--set", "material.5.E=110000",
+                                            "--set", "material.5.nu=0.34", "--set", "default.E=15000"])
+inp_path = base + ".inp"
+inp = open(inp_path).read()
+check(re.search(r"^\*STEP", inp, re.M | re.I) is None, "the export is model data only (no *STEP)")
+check("*SOLID SECTION" in inp and "*ELASTIC" in inp and "*DENSITY" in inp, "INP has sections and materials")
+check(re.search(r"\*ELASTIC\n110000, 0\.34\n", inp) is not None, "per-material E and nu reach the INP")
 check("*SURFACE, NAME=IF_" in inp and "*NSET, NSET=BOUNDARY" in inp, "INP has interface surfaces and the boundary node set")
 
-# Nodes and the boundary set.
-nodes = {}
-section = None
-boundary = set()
+# Parse nodes, BOUNDARY, element connectivity and the OUTER_ surfaces.
+nodes, elements, boundary, outer = {}, {}, set(), {}
+section = ""
 for line in inp.splitlines():
+    if line.startswith("**"):
+        continue
     if line.startswith("*"):
         section = line.upper()
         continue
-    if section and section.startswith("*NODE"):
-        parts = line.split(",")
-        nodes[int(parts[0])] = tuple(float(x) for x in parts[1:4])
-    elif section and section.startswith("*NSET, NSET=BOUNDARY"):
-        boundary.update(int(x) for x in line.replace(",", " ").split())
-zs = [nodes[n][2] for n in boundary]
-zmin, zmax = min(zs), max(zs)
-tol = 1.0
+    f = [x.strip() for x in line.split(",") if x.strip()]
+    if section.startswith("*NODE"):
+        nodes[int(f[0])] = np.array([float(x) for x in f[1:4]])
+    elif section.startswith("*ELEMENT"):
+        elements[int(f[0])] = [int(x) for x in f[1:5]]
+    elif section.startswith("*NSET, NSET=BOUNDARY"):
+        boundary.update(int(x) for x in f)
+    elif section.startswith("*SURFACE, NAME=OUTER_"):
+        name = re.search(r"NAME=(\w+)", section).group(1)
+        outer.setdefault(name, []).append((int(f[0]), int(f[1][1:])))
+n_tets = int(report["counts"]["tets"])
+check(len(nodes) == int(report["counts"]["vertices"]) and len(elements) == n_tets,
+      "INP has %d nodes and %d elements as in the report" % (len(nodes), len(elements)))
+zs = np.array([nodes[n][2] for n in boundary])
+zmin, zmax = zs.min(), zs.max()
+tol = 0.02 * (zmax - zmin)
 bottom = sorted(n for n in boundary if nodes[n][2] < zmin + tol)
 top = sorted(n for n in boundary if nodes[n][2] > zmax - tol)
 check(len(bottom) >= 3 and len(top) >= 3, "found %d bottom and %d top boundary nodes" % (len(bottom), len(top)))
 
+# Outer boundary area (from the element faces the INP names) for the pressure check.
+FACES = {1: (0, 1, 2), 2: (0, 3, 1), 3: (1, 3, 2), 4: (2, 3, 0)}
+area, resultant = 0.0, np.zeros(3)
+for name, faces in outer.items():
+    for e, s in faces:
+        el = elements[e]
+        a, b, c = (nodes[el[i]] for i in FACES[s])
+        d = nodes[el[({0, 1, 2, 3} - set(FACES[s])).pop()]]
+        nrm = np.cross(b - a, c - a) / 2
+        if np.dot(nrm, a - d) < 0:
+            nrm = -nrm  # outward from the element
+        area += np.linalg.norm(nrm)
+        resultant += nrm
+check(area > 0 and np.linalg.norm(resultant) < 1e-6 * area,
+      "the OUTER_ surfaces close the body (|sum of outward area vectors| %.3g vs area %.4g mm^2)"
+      % (np.linalg.norm(resultant), area))
+
 work = os.path.dirname(base)
-deck = os.path.join(work, "static")
-with open(deck + ".inp", "w") as f:
-    f.write("*INCLUDE, INPUT=%s\n" % os.path.basename(base + ".inp"))
-    f.write("*NSET, NSET=FIXED\n" + "\n".join("%d," % n for n in bottom) + "\n")
-    f.write("*NSET, NSET=LOADED\n" + "\n".join("%d," % n for n in top) + "\n")
-    f.write("*BOUNDARY\nFIXED, 1, 3, 0.0\n")
-    f.write("*STEP\n*STATIC\n*CLOAD\n")
-    per_node = -1000.0 / len(top)  # 1 kN downwards (-z) in total
-    for n in top:
-        f.write("%d, 3, %.10g\n" % (n, per_node))
-    f.write("*NODE PRINT, NSET=LOADED\nU\n*END STEP\n")
-r = subprocess.run([ccx, "-i", "static"], cwd=work, capture_output=True, text=True, timeout=1500,
-                   stdin=subprocess.DEVNULL, env=dict(os.environ, OMP_NUM_THREADS="2"))
-out = r.stdout + r.stderr
-check(r.returncode == 0, "ccx exits 0")
-check("*ERROR" not in out, "ccx reports no *ERROR" + ("" if "*ERROR" not in out else ": " + out[out.find("*ERROR"):][:300]))
-dat = os.path.join(work, "static.dat")
-uz = []
-if os.path.exists(dat):
-    for line in open(dat):
-        m = re.match(r"\s*(\d+)\s+([-+0-9.Ee]+)\s+([-+0-9.Ee]+)\s+([-+0-9.Ee]+)\s*$", line)
-        if m:
-            uz.append(float(m.group(4)))
+pressure = 0.01  # MPa
+
+
+def node_lines(ids):
+    return "".join(", ".join(str(n) for n in ids[i:i + 16]) + "\n" for i in range(0, len(ids), 16))
+
+
+def solve(job, text):
+    with open(os.path.join(work, job + ".inp"), "w") as f:
+        f.write("*INCLUDE, INPUT=%s\n" % os.path.basename(inp_path) + text)
+    r = subprocess.run([ccx, "-i", job], cwd=work, capture_output=True, text=True, timeout=1500,
+                       stdin=subprocess.DEVNULL, env=dict(os.environ, OMP_NUM_THREADS="2"))
+    out = r.stdout + r.stderr
+    check(r.returncode == 0, "%s: ccx exits 0" % job)
+    err = out.find("*ERROR")
+    check(err < 0, "%s: ccx reports no *ERROR" % job + ("" if err < 0 else ": " + out[err:err + 300]))
+    dat = os.path.join(work, job + ".dat")
+    check(os.path.exists(dat), "%s: ccx wrote %s.dat" % (job, job))
+    text = open(dat).read() if os.path.exists(dat) else ""
+    # Blocks of the .dat by their headers.
+    parts = re.split(r"\n\s*(displacements|total force)[^\n]*\n", text)
+    disp, totals = [], []
+    for kind, body in zip(parts[1::2], parts[2::2]):
+        rows = [[float(x) for x in l.split()] for l in body.strip().splitlines() if l.strip()]
+        (disp if kind == "displacements" else totals).append(rows)
+    return disp, totals
+
+
+# 1. Bottom fixed, top pushed down.
+per_node = -1000.0 / len(top)  # 1 kN downwards (-z) in total
+disp, totals = solve("static", "*NSET, NSET=FIXED\n" + node_lines(bottom) + "*NSET, NSET=LOADED\n" +
+                     node_lines(top) + "*BOUNDARY\nFIXED, 1, 3, 0.0\n*STEP\n*STATIC\n*CLOAD\n" +
+                     "".join("%d, 3, %.10g\n" % (n, per_node) for n in top) +
+                     "*NODE PRINT, NSET=LOADED\nU\n*NODE PRINT, NSET=FIXED, TOTALS=ONLY\nRF\n*END STEP\n")
+uz = [row[3] for row in disp[0]] if disp else []
 check(len(uz) == len(top), "displacements printed for the %d loaded nodes (got %d)" % (len(top), len(uz)))
 check(all(math.isfinite(u) for u in uz), "all displacements are finite")
 check(any(abs(u) > 0 for u in uz), "displacements are not all zero")
-check(sum(uz) / max(1, len(uz)) < 0, "the loaded face moves in the load direction (mean uz %.3g mm)" % (sum(uz) / max(1, len(uz))))
+mean_uz = sum(uz) / max(1, len(uz))
+check(mean_uz < 0, "the loaded face moves in the load direction (mean uz %.3g mm)" % mean_uz)
+check(len(totals) == 1 and len(totals[0]) == 1 and len(totals[0][0]) == 3, "ccx printed the reaction total")
+if totals and totals[0]:
+    rf = np.array(totals[0][0])
+    check(abs(rf[2] - 1000.0) < 1.0 and abs(rf[0]) < 1.0 and abs(rf[1]) < 1.0,
+          "the reaction balances the 1 kN load (RF = %s N)" % np.round(rf, 4))
+
+# 2. Uniform pressure on the closed outer boundary, 3-2-1 support on interior nodes.
+interior = sorted(set(nodes) - boundary)
+xyz = np.array([nodes[n] for n in interior])
+a = interior[int(xyz[:, 0].argmin())]
+b = interior[int(xyz[:, 0].argmax())]
+c = interior[int(np.abs(np.cross(xyz - nodes[a], nodes[b] - nodes[a])).sum(axis=1).argmax())]
+check(len({a, b, c}) == 3, "three interior support nodes %s" % [a, b, c])
+disp, totals = solve("pressure", "*NSET, NSET=SUPPORT\n%d, %d, %d\n*BOUNDARY\n%d, 1, 3\n%d, 2, 3\n%d, 3, 3\n"
+                     % (a, b, c, a, b, c) + "*STEP\n*STATIC\n*DLOAD\n" +
+                     "".join("%s, P, %g\n" % (nm, pressure) for nm in sorted(outer)) +
+                     "*NODE PRINT, NSET=SUPPORT, TOTALS=ONLY\nRF\n*NODE PRINT, NSET=SUPPORT\nU\n*END STEP\n")
+check(len(totals) == 1 and len(totals[0]) == 1, "ccx printed the support reaction")
+if totals and totals[0]:
+    rf = np.array(totals[0][0])
+    check(np.linalg.norm(rf) < 1e-6 * pressure * area,
+          "uniform pressure on the OUTER_ surfaces has zero resultant (|RF| %.3g N vs p*A %.4g N)"
+          % (np.linalg.norm(rf), pressure * area))
 check.finish()

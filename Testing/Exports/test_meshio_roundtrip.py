@@ -1,99 +1,193 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""meshio (Debian python3-meshio) reads the legacy VTK, Gmsh MSH and Medit exports of the phantom
-and of a real volume: same points, same tets, same per-tet labels, materials as in the run report.
+"""The exports of the CLI read back by real readers, for the built-in phantom and a real volume
+(spheres_argmax.nrrd): meshio (Debian python3-meshio) reads the .vtu, legacy .vtk, .msh, .mesh and
+.inp (and the .stl); every reader must give the very same points (bit for bit), the same tets and
+the same per-tet labels as the .vtu, and the materials of the run report. The .vtu field data
+(SPACE=LPS, material ids and names, version, provenance) is decoded independently of VTK.
 
-The .vtu carries Slicer's coordinate-system tag as a string field array (SPACE = LPS), which
-meshio cannot parse ("Illegal data type 'String'", meshio 5); the .vtu is read back by VTK's own
-reader through `femesher quality` instead, and the legacy .vtk (Slicer's "SPACE=LPS" header) is
-the meshio-readable VTK file."""
-import json
+meshio cannot parse VTK's string field arrays ("Illegal data type 'String'"); when it refuses
+the .vtu, the test gives it a copy without the <FieldData> block (everything else unchanged) and
+checks the field data with its own decoder (vtu_decode.py)."""
 import os
-import subprocess
+import re
+import xml.etree.ElementTree as ET
 
 import meshio
 import numpy as np
 
-from exports_common import CLI, DATA, Checker, mesh_volume
+from exports_common import DATA, Checker, mesh_volume
+from vtu_decode import read_vtu, without_field_data
 
 check = Checker()
 
 
-def tets_of(m):
-    blocks = [b.data for b in m.cells if b.type == "tetra"]
-    return np.concatenate(blocks) if blocks else np.zeros((0, 4), dtype=int)
+def blocks(m, kind, key=None):
+    """Concatenated cells of type `kind` (and their cell data `key`)."""
+    idx = [i for i, b in enumerate(m.cells) if b.type == kind]
+    cells = np.concatenate([m.cells[i].data for i in idx]) if idx else np.zeros((0, 3 if kind == "triangle" else 4), int)
+    if key is None:
+        return cells
+    data = np.concatenate([np.asarray(m.cell_data[key][i]).reshape(-1) for i in idx]).astype(np.int64) if idx else None
+    return cells, data
 
 
-def labels_of(m, key):
-    parts = [np.asarray(v).reshape(-1).astype(int) for b, v in zip(m.cells, m.cell_data[key]) if b.type == "tetra"]
-    return np.concatenate(parts) if parts else None
+def align(ref_tets, tets):
+    """Permutation p with tets[p] == ref_tets up to the vertex order within each tet (None if the
+    tet sets differ)."""
+    def order(t):
+        s = np.sort(t, axis=1)
+        return np.lexsort(s.T[::-1]), s
+    ro, rs = order(ref_tets)
+    to, ts = order(tets)
+    if len(rs) != len(ts) or not np.array_equal(rs[ro], ts[to]):
+        return None
+    p = np.empty(len(ref_tets), int)
+    p[ro] = to
+    return p
+
+
+def face_keys(tets, n):
+    """Sorted-vertex keys of the 4 faces of each tet, shape (T, 4)."""
+    f = np.stack([tets[:, [1, 2, 3]], tets[:, [0, 2, 3]], tets[:, [0, 1, 3]], tets[:, [0, 1, 2]]], axis=1)
+    f = np.sort(f, axis=2).astype(np.int64)
+    return (f[..., 0] * n + f[..., 1]) * n + f[..., 2]
+
+
+def tri_keys(tris, n):
+    s = np.sort(tris, axis=1).astype(np.int64)
+    return (s[:, 0] * n + s[:, 1]) * n + s[:, 2]
 
 
 for name, source in (("phantom", None), ("spheres", os.path.join(DATA, "spheres_argmax.nrrd"))):
-    base, report, _ = mesh_volume(name, source)
+    base, report, src = mesh_volume(name, source)
     n_tets = int(report["counts"]["tets"])
     n_pts = int(report["counts"]["vertices"])
-    in_mesh = sorted(l["id"] for l in report["input"]["labels"] if l["in_mesh"])
+    mats = sorted((l["id"], l["name"]) for l in report["input"]["labels"] if l["in_mesh"])
+    ids = [i for i, _ in mats]
+    print("== %s: %d points, %d tets, materials %s" % (name, n_pts, n_tets, mats))
 
-    # VTU through VTK's reader.
-    r = subprocess.run([CLI, "quality", base + ".vtu", "--json"], capture_output=True, text=True,
-                       stdin=subprocess.DEVNULL)
-    ok = r.returncode == 0
-    q = json.loads(r.stdout) if ok else {}
-    check(ok and q["quality"]["all"]["tets"] == n_tets and q["quality"]["inverted_tets"] == 0,
-          "%s: VTU read back by VTK (femesher quality): %d tets, none inverted" % (name, n_tets))
-    check(ok and sorted(m["label"] for m in q["quality"]["per_material"]) == in_mesh,
-          "%s: VTU labels per material = report" % name)
-    head = open(base + ".vtu", "rb").read(4096)
-    check(b'Name="SPACE"' in head or b"SPACE" in open(base + ".vtu", "rb").read(),
-          "%s: VTU field data SPACE present" % name)
+    # --- .vtu: independent decoder (field data) and meshio ------------------------------------
+    root, arrays, field = read_vtu(base + ".vtu")
+    check(field.get("SPACE") == ["LPS"], "%s: VTU field data SPACE = LPS" % name)
+    check(list(map(int, field.get("MaterialIds", []))) == ids, "%s: VTU MaterialIds = report %s" % (name, ids))
+    check(field.get("MaterialNames") == [n for _, n in mats],
+          "%s: VTU MaterialNames = report (%s)" % (name, field.get("MaterialNames")))
+    check(field.get("FEMesherVersion") == [report["femesher_version"]], "%s: VTU FEMesherVersion" % name)
+    check(bool(field.get("Provenance")) and os.path.basename(src) in field["Provenance"][0],
+          "%s: VTU Provenance names the input (%s)" % (name, field.get("Provenance")))
+    check(bool((arrays["types"] == 10).all()), "%s: VTU cells are all VTK_TETRA" % name)
+    check(arrays["labels"].dtype.itemsize == 4 and arrays["labels"].dtype.kind == "i", "%s: VTU labels are int32" % name)
+    try:
+        # meshio's VTU reader itself (meshio.read prints and calls sys.exit on a ReadError).
+        vtu = meshio.vtu.read(base + ".vtu")
+        how = "directly"
+    except meshio.ReadError as e:  # meshio 5: "Illegal data type 'String'" (field data only)
+        check("String" in str(e), "%s: meshio refuses the VTU only for its string field data (%s)" % (name, e))
+        stripped = base + "_nofield.vtu"
+        without_field_data(base + ".vtu", stripped)
+        vtu = meshio.read(stripped)
+        how = "without field data"
+    P = vtu.points
+    T, L = blocks(vtu, "tetra", "labels")
+    check(len(P) == n_pts and len(T) == n_tets, "%s: meshio reads the VTU (%s): %d points, %d tets" % (name, how, len(P), len(T)))
+    check(np.array_equal(P, arrays["Points"]) and np.array_equal(T.reshape(-1), arrays["connectivity"]),
+          "%s: meshio and the independent decoder agree on the VTU" % name)
+    check(sorted(set(L.tolist())) == ids, "%s: VTU label set %s = report" % (name, sorted(set(L.tolist()))))
+    check(bool(np.isfinite(P).all()), "%s: coordinates finite" % name)
+    vol = np.einsum("ij,ij->i", P[T[:, 1]] - P[T[:, 0]], np.cross(P[T[:, 2]] - P[T[:, 0]], P[T[:, 3]] - P[T[:, 0]]))
+    check(bool((vol > 0).all()), "%s: every tet positively oriented (%d not)" % (name, int((vol <= 0).sum())))
+    n = len(P) + 1
 
-    vtu = meshio.read(base + ".vtk")
-    tv = tets_of(vtu)
-    lv = labels_of(vtu, "labels")
-    check(len(vtu.points) == n_pts and len(tv) == n_tets, "%s: legacy VTK (meshio) has %d points, %d tets" % (name, n_pts, n_tets))
-    check(sorted(set(lv.tolist())) == in_mesh, "%s: VTK labels %s = report %s" % (name, sorted(set(lv.tolist())), in_mesh))
+    # --- legacy .vtk (meshio) ------------------------------------------------------------------
+    vtk = meshio.read(base + ".vtk")
+    Tk, Lk = blocks(vtk, "tetra", "labels")
+    check(np.array_equal(vtk.points, P) and np.array_equal(Tk, T) and np.array_equal(Lk, L),
+          "%s: legacy VTK = VTU (points, tets, labels)" % name)
     check(open(base + ".vtk", "rb").read(200).find(b"SPACE=LPS") > 0, "%s: legacy VTK header says SPACE=LPS" % name)
-    # Orientation: every tet positive in the VTU.
-    p = vtu.points
-    vol = np.einsum("ij,ij->i", p[tv[:, 1]] - p[tv[:, 0]], np.cross(p[tv[:, 2]] - p[tv[:, 0]], p[tv[:, 3]] - p[tv[:, 0]]))
-    check(bool((vol > 0).all()), "%s: all tets positively oriented" % name)
 
-    # Per-tet comparison by centroid (formats may reorder cells).
-    def keyed(m, tets, labels):
-        c = m.points[tets].mean(axis=1)
-        order = np.lexsort((c[:, 2], c[:, 1], c[:, 0]))
-        return np.round(c[order], 6), labels[order]
-
-    cv, lv_sorted = keyed(vtu, tv, lv)
+    # --- .msh (meshio) ---------------------------------------------------------------------------
     msh = meshio.read(base + ".msh")
-    tm = tets_of(msh)
-    lm = labels_of(msh, "gmsh:physical")
-    check(len(msh.points) == n_pts and len(tm) == n_tets, "%s: MSH has the same points and tets" % name)
-    cm, lm_sorted = keyed(msh, tm, lm)
-    check(np.allclose(cv, cm) and (lv_sorted == lm_sorted).all(), "%s: MSH physical volumes = VTK labels per tet" % name)
-    names = msh.field_data if hasattr(msh, "field_data") else {}
-    vol_names = [k for k, v in names.items() if int(v[1]) == 3]
-    surf_names = [k for k, v in names.items() if int(v[1]) == 2]
-    check(len(vol_names) == len(in_mesh), "%s: MSH names a physical volume per material (%s)" % (name, vol_names))
-    check(any(k.startswith("interface_") for k in surf_names) and any(k.startswith("boundary_") for k in surf_names),
-          "%s: MSH names interface and boundary surfaces" % name)
+    Tm, Lm = blocks(msh, "tetra", "gmsh:physical")
+    check(np.array_equal(msh.points, P), "%s: MSH points = VTU points, bit for bit" % name)
+    p = align(T, Tm)
+    check(p is not None, "%s: MSH has the same %d tets" % (name, len(Tm)))
+    if p is not None:
+        check(np.array_equal(Tm[p], T), "%s: MSH keeps each tet's vertex order (orientation)" % name)
+        check(np.array_equal(Lm[p], L), "%s: MSH physical volume of every tet = VTU label" % name)
+    phys = {k: (int(v[0]), int(v[1])) for k, v in msh.field_data.items()}
+    vol_names = sorted((t, k) for k, (t, d) in phys.items() if d == 3)
+    check(vol_names == [(i, nm) for i, nm in mats], "%s: MSH physical volumes named by material %s" % (name, vol_names))
+    surf = {t: k for k, (t, d) in phys.items() if d == 2}
+    check(all(re.fullmatch(r"(interface_-?\d+_-?\d+|boundary_-?\d+)", k) for k in surf.values())
+          and any(k.startswith("interface_") for k in surf.values()) and any(k.startswith("boundary_") for k in surf.values()),
+          "%s: MSH physical surfaces interface_a_b / boundary_a (%d)" % (name, len(surf)))
+    tris, tlab = blocks(msh, "triangle", "gmsh:physical")
+    # Every interface triangle is a face of one tet of each side; boundary ones of one tet.
+    fk = face_keys(T, n)
+    owner_label = np.repeat(L, 4)
+    order = np.argsort(fk.reshape(-1), kind="stable")
+    fsorted = fk.reshape(-1)[order]
+    tk = tri_keys(tris, n)
+    lo = np.searchsorted(fsorted, tk, "left")
+    hi = np.searchsorted(fsorted, tk, "right")
+    ok = True
+    for t, i, j in zip(tlab, lo, hi):
+        lab_name = surf[t]
+        m_ = re.fullmatch(r"interface_(-?\d+)_(-?\d+)", lab_name)
+        sides = sorted(owner_label[order[i:j]].tolist())
+        want = sorted([int(m_.group(1)), int(m_.group(2))]) if m_ else [int(lab_name.split("_")[1])]
+        if sides != want:
+            ok = False
+            print("   triangle of %s has tets of labels %s" % (lab_name, sides))
+            break
+    check(ok, "%s: every MSH interface triangle lies between tets of its two materials (%d triangles)" % (name, len(tris)))
+    # Conversely, every face between two materials (or on the boundary) is an MSH triangle.
+    uk, first, counts = np.unique(fsorted, return_index=True, return_counts=True)
+    lab_first = owner_label[order[first]]
+    lab_last = owner_label[order[first + counts - 1]]
+    expected = int((counts == 1).sum() + ((counts == 2) & (lab_first != lab_last)).sum())
+    check(expected == len(tris), "%s: MSH has all %d interface/boundary faces (has %d)" % (name, expected, len(tris)))
+    boundary_nodes = set(np.unique(tris[np.array([surf[t].startswith("boundary_") for t in tlab])]).tolist())
 
+    # --- .mesh (meshio, Medit) -----------------------------------------------------------------
     med = meshio.read(base + ".mesh")
-    tmed = tets_of(med)
-    lmed = labels_of(med, "medit:ref")
-    check(len(tmed) == n_tets, "%s: Medit has the same tets" % name)
-    cmed, lmed_sorted = keyed(med, tmed, lmed)
-    check(np.allclose(cv, cmed) and (lv_sorted == lmed_sorted).all(), "%s: Medit refs = VTK labels per tet" % name)
+    Td, Ld = blocks(med, "tetra", "medit:ref")
+    check(np.array_equal(med.points, P), "%s: Medit points = VTU points, bit for bit" % name)
+    check(np.array_equal(Td, T) and np.array_equal(Ld, L), "%s: Medit tets and refs = VTU tets and labels" % name)
+    check(len(blocks(med, "triangle")) == len(tris), "%s: Medit has the %d interface triangles" % (name, len(tris)))
 
-    # FEBio: well-formed XML with every tet once.
-    import xml.etree.ElementTree as ET
+    # --- .inp (meshio, Abaqus) -----------------------------------------------------------------
+    inp = meshio.read(base + ".inp")
+    Ti = blocks(inp, "tetra")
+    # CalculiX reads at most 20 characters per field: tiny coordinates lose their last digits.
+    same_shape = inp.points.shape == P.shape
+    err = np.abs(inp.points - P).max() / max(1.0, np.abs(P).max()) if same_shape else np.inf
+    check(err <= 1e-14, "%s: INP nodes = VTU points to 1e-14 relative (20-character fields; %.3g)" % (name, err))
+    check(align(T, Ti) is not None, "%s: INP has the same tets" % name)
+    elsets = sorted(k for k in inp.cell_sets if k.startswith("M"))
+    check(len(elsets) == len(ids), "%s: INP has an element set per material %s" % (name, elsets))
+    check(set(int(i) for i in inp.point_sets.get("BOUNDARY", [])) == boundary_nodes,
+          "%s: INP NSET BOUNDARY = nodes of the MSH boundary triangles (%d)" % (name, len(boundary_nodes)))
+
+    # --- .feb (FEBio XML) ----------------------------------------------------------------------
     feb = ET.parse(base + ".feb").getroot()
-    elems = feb.findall(".//Elements/elem")
-    check(len(elems) == n_tets and len(feb.findall(".//Material/material")) == len(in_mesh),
-          "%s: FEBio file lists every tet and a material per label" % name)
-    stl = open(base + ".stl").read()
-    check(stl.count("solid interface_") >= 1 and stl.count("endsolid") >= len(in_mesh),
-          "%s: STL has a solid per interface" % name)
+    check(feb.tag == "febio_spec" and feb.get("version") == "2.5", "%s: FEBio 2.5 document" % name)
+    elems = feb.findall("./Geometry/Elements/elem")
+    check([int(e.get("id")) for e in elems] == list(range(1, n_tets + 1)), "%s: FEBio elements 1..%d" % (name, n_tets))
+    check(len(feb.findall("./Geometry/Nodes/node")) == n_pts, "%s: FEBio nodes" % name)
+    fm = feb.findall("./Material/material")
+    check(sorted(m.get("name") for m in fm) == sorted(nm for _, nm in mats), "%s: FEBio material per label" % name)
+    doms = feb.findall("./Geometry/Elements")
+    per_label = sorted(int((L == i).sum()) for i in ids)
+    check(sorted(len(d.findall("elem")) for d in doms) == per_label, "%s: FEBio domain sizes = tets per label" % name)
+
+    # --- .stl ------------------------------------------------------------------------------------
+    text = open(base + ".stl").read()
+    solids = re.findall(r"^solid (\S+)", text, re.M)
+    check(sorted(solids) == sorted(surf.values()), "%s: STL has one solid per MSH surface" % name)
+    check(text.count("facet normal") == len(tris), "%s: STL has the %d interface triangles" % (name, len(tris)))
+    stl = meshio.read(base + ".stl")
+    check(len(blocks(stl, "triangle")) == len(tris), "%s: meshio reads the STL" % name)
 
 check.finish()

@@ -12,6 +12,7 @@
 ///  - .mesh Medit (INRIA) ASCII: tets with material refs, interface triangles with refs.
 ///  - .feb  FEBio 2.5 model: nodes, a solid domain per material, materials (neo-Hookean from E/nu).
 ///  - .stl  ASCII STL: one `solid` per interface (outward from the lower label).
+///  - .vtk  legacy VTK (binary, Slicer's "SPACE=LPS" header) for readers without string field data.
 /// All writers are atomic (temporary file + rename). Coordinates are written in LPS mm.
 
 #include <femesher/Parameters.h>
@@ -41,7 +42,8 @@ std::vector<std::string> supportedMeshExtensions();
 /// WriteFailed for I/O errors. Never leaves a partial file.
 Status writeMesh(const TetMesh& mesh, const std::string& path, const ExportOptions& options = {});
 
-/// Read a tet mesh written by FEMesher (.vtu; .msh 4.1 and .mesh too). Used by `femesher quality`.
+/// Read a tet mesh written by FEMesher (.vtu, .vtk; .msh 4.1 ASCII and .mesh too). Used by
+/// `femesher quality`. Errors: FileNotFound, UnreadableFile (wrong format/version), CorruptFile.
 Result<TetMesh> readMesh(const std::string& path);
 
 }  // namespace femesher

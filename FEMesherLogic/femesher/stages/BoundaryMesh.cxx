@@ -133,6 +133,14 @@ BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector
     const Vec3 c = vol.localToCanonical(l);
     pts.emplace_back(Point(c[0], c[1], c[2]), int32_t(pts.size()));
   }
+  if (pts.size() < 4) {
+    // Tiny inputs: the sampling spacing exceeds the whole structure; use every interface vertex.
+    pts.clear();
+    for (const auto& smp : samples.all) {
+      const Vec3 c = vol.localToCanonical(smp.local);
+      pts.emplace_back(Point(c[0], c[1], c[2]), int32_t(pts.size()));
+    }
+  }
   if (pts.size() < 4)
     throw Error(ErrorCode::MeshingFailed,
                 "Too few interface samples (" + std::to_string(pts.size()) +

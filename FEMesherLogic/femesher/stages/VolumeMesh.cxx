@@ -49,8 +49,8 @@ struct TetgenOutput {
 };
 
 /// Runs TetGen in this process; returns false (and the error text) when it throws.
-bool runTetgen(const BoundarySurface& s, const std::string& switches, TetgenOutput& result,
-               std::string& error) {
+bool runTetgen(const BoundarySurface& s, const std::vector<double>& sizes,
+               const std::string& switches, TetgenOutput& result, std::string& error) {
   tetgenio out;
   tetgenio in;
   in.firstnumber = 0;
@@ -58,6 +58,11 @@ bool runTetgen(const BoundarySurface& s, const std::string& switches, TetgenOutp
   in.pointlist = new REAL[3 * s.points.size()];
   for (size_t i = 0; i < s.points.size(); ++i)
     for (int a = 0; a < 3; ++a) in.pointlist[3 * i + a] = s.points[i][a];
+  if (sizes.size() == s.points.size()) {
+    in.numberofpointmtrs = 1;
+    in.pointmtrlist = new REAL[sizes.size()];
+    for (size_t i = 0; i < sizes.size(); ++i) in.pointmtrlist[i] = sizes[i];
+  }
   // Interface ids for facet markers.
   std::map<std::pair<uint16_t, uint16_t>, int> ids;
   for (const auto& p : s.trianglePairs) ids.emplace(p, int(ids.size()) + 1);
@@ -115,21 +120,22 @@ bool writeAll(int fd, const void* data, size_t n) {
 /// Runs TetGen in a child process so that a cancel request can stop it at once (TetGen itself
 /// has no cancel hook): the parent polls the cancel token while it reads the result from a pipe,
 /// and kills the child when asked to stop. Falls back to in-process when fork() fails.
-bool runTetgenCancelable(const BoundarySurface& s, const std::string& switches,
-                         TetgenOutput& result, std::string& error, RunContext& ctx) {
+bool runTetgenCancelable(const BoundarySurface& s, const std::vector<double>& sizes,
+                         const std::string& switches, TetgenOutput& result, std::string& error,
+                         RunContext& ctx) {
   int fds[2];
-  if (::pipe(fds) != 0) return runTetgen(s, switches, result, error);
+  if (::pipe(fds) != 0) return runTetgen(s, sizes, switches, result, error);
   const pid_t pid = ::fork();
   if (pid < 0) {
     ::close(fds[0]);
     ::close(fds[1]);
-    return runTetgen(s, switches, result, error);
+    return runTetgen(s, sizes, switches, result, error);
   }
   if (pid == 0) {  // child: mesh, stream the result, leave without running any exit handler
     ::close(fds[0]);
     TetgenOutput r;
     std::string err;
-    const bool ok = runTetgen(s, switches, r, err);
+    const bool ok = runTetgen(s, sizes, switches, r, err);
     const int32_t status = ok ? 0 : 1;
     bool w = writeAll(fds[1], &status, sizeof status);
     if (ok) {
@@ -219,6 +225,7 @@ VolumeMeshResult buildVolumeMesh(const BoundarySurface& s, const VolumeMeshParam
     if (params.minDihedralAngle > 0) base << "/" << params.minDihedralAngle;
   }
   base << "A";
+  if (params.pointSizes.size() == s.points.size() && params.usePointSizes) base << "m";
   if (params.maxTetVolume > 0) base << "a" << params.maxTetVolume;
   base << "O" << params.optimizationLevel;
   // Guard against run-away refinement: at most 40 Steiner points per surface vertex + 1M.
@@ -232,7 +239,7 @@ VolumeMeshResult buildVolumeMesh(const BoundarySurface& s, const VolumeMeshParam
     ctx.checkCancel();
     TetgenOutput out;
     std::string error;
-    if (!runTetgenCancelable(s, switches, out, error, ctx)) {
+    if (!runTetgenCancelable(s, params.pointSizes, switches, out, error, ctx)) {
       ctx.warn("Volume meshing with TetGen switches '" + switches + "' failed: " + error + ".");
       continue;
     }

@@ -27,6 +27,10 @@ struct VolumeMeshParameters {
   double maxTetVolume = 0;          ///< mm^3, 0 = none
   bool preserveInterfaces = true;   ///< -Y
   int optimizationLevel = 3;
+  /// Target edge length (mm) at each surface point, handed to TetGen as point metrics (-m) so the
+  /// interior follows the sizing field; empty = none.
+  std::vector<double> pointSizes;
+  bool usePointSizes = true;
 };
 
 struct VolumeMeshResult {
