@@ -10,7 +10,9 @@
 #include <femesher/io/LabelMapIO.h>
 #include <femesher/io/MeshIO.h>
 #include <femesher/stages/Fidelity.h>
+#include <femesher/stages/MedialAxis.h>
 #include <femesher/stages/Quality.h>
+#include <femesher/stages/SizingField.h>
 
 #include <CLI/CLI.hpp>
 
@@ -321,6 +323,70 @@ int runPhantom(const std::string& output, double voxelSize) {
   return 0;
 }
 
+/// `femesher medial-axis`: the Integer Medial Axis as a label image (the label whose axis passes
+/// through a voxel; -1 elsewhere), with the input's geometry.
+int runMedialAxis(const std::string& input, const std::string& output, const std::string& labelText,
+                  const std::string& prune, double gamma, double gammaConstant) {
+  auto volume = readLabelMap(input);
+  if (!volume) return fail(volume.status());
+  MedialAxisParameters mp;
+  if (!prune.empty() && !parseMedialAxisPruning(prune, mp.pruning))
+    return fail({ErrorCode::InvalidArgument,
+                 "--prune '" + prune + "': use none, constant, linear, sqrt or constant-linear"});
+  if (gamma >= 0) mp.gamma = gamma;
+  if (gammaConstant >= 0) mp.gammaConstant = gammaConstant;
+  LabelVolume out = volume.value();
+  try {
+    if (!labelText.empty()) {
+      char* end = nullptr;
+      const long label = std::strtol(labelText.c_str(), &end, 10);
+      if (!end || *end != '\0')
+        return fail({ErrorCode::InvalidArgument, "--label '" + labelText + "' is not an integer"});
+      const MedialAxis axis = computeLabelMedialAxis(volume.value(), int32_t(label), mp);
+      std::fill(out.labels.begin(), out.labels.end(), -1);
+      for (uint32_t v : axis.voxels) out.labels[v] = int32_t(label);
+      std::fprintf(stderr, "label %ld: %zu medial voxels (pruning %s, gamma %g)\n", label,
+                   axis.voxels.size(), medialAxisPruningName(mp.pruning), mp.gamma);
+    } else {
+      const LabelMedialAxes axes = computeAllMedialAxes(volume.value(), mp);
+      out.labels = axes.labelImage(-1);
+      std::fprintf(stderr, "%zu medial voxels over %zu labels (pruning %s, gamma %g)\n",
+                   axes.voxelCount(), axes.labels.size(), medialAxisPruningName(mp.pruning), mp.gamma);
+    }
+  } catch (const Error& e) {
+    return fail(e.status());
+  }
+  if (Status s = writeLabelMap(out, output); !s) return fail(s);
+  std::fprintf(stderr, "wrote %s\n", output.c_str());
+  return 0;
+}
+
+/// `femesher sizing`: the adaptive sizing field (target edge length, mm) as a float image.
+int runSizing(const std::string& input, const std::string& output, const MeshOptions& o) {
+  auto params = buildParameters(o);
+  if (!params) return fail(params.status());
+  auto volume = readLabelMap(input);
+  if (!volume) return fail(volume.status());
+  const auto& v = volume.value();
+  const MeshingParameters& p = params.value();
+  const double mean = (v.spacing[0] + v.spacing[1] + v.spacing[2]) / 3.0;
+  const double h = p.targetEdgeLength > 0 ? p.targetEdgeLength : p.edgeLengthFactor * mean;
+  SizingParameters sp;
+  sp.scale = p.sizingScale;
+  sp.hMin = p.sizingHMin > 0 ? p.sizingHMin : 0.5 * h;
+  sp.hMax = p.sizingHMax > 0 ? p.sizingHMax : 2.5 * h;
+  sp.gradation = p.gradation;
+  sp.threads = p.threads;
+  RunContext ctx;
+  auto field = computeSizingField(v, sp, ctx);
+  if (!field) return fail(field.status());
+  if (Status s = writeScalarVolume(v, field->h, output); !s) return fail(s);
+  const auto [mn, mx] = std::minmax_element(field->h.begin(), field->h.end());
+  std::fprintf(stderr, "wrote %s: target edge length %.3g .. %.3g mm (%zu medial voxels)\n",
+               output.c_str(), *mn, *mx, field->medialVoxels);
+  return 0;
+}
+
 void addMeshOptions(CLI::App* cmd, MeshOptions& o, bool positionalOutput) {
   cmd->add_option("input", o.input, "Label map (.nrrd .nhdr .nii .nii.gz .mha .mhd .seg.nrrd)")
       ->required();
@@ -350,6 +416,7 @@ void addMeshOptions(CLI::App* cmd, MeshOptions& o, bool positionalOutput) {
 int main(int argc, char** argv) {
   // Slicer runs CLI modules as `femesher [--flags] input output` (no sub-command).
   static const std::vector<std::string> commands = {"mesh", "quality", "info", "phantom",
+                                                    "medial-axis", "sizing",
                                                     "parameters", "--xml", "--version", "-h",
                                                     "--help"};
   bool slicerStyle = argc > 1;
@@ -399,6 +466,24 @@ int main(int argc, char** argv) {
   phantom->add_option("output", phantomOut, "Output label map (.nrrd .nii.gz .mha)")->required();
   phantom->add_option("--voxel-size", phantomVoxel, "Voxel size in mm (default 1)");
 
+  std::string maInput, maOutput, maLabel, maPrune;
+  double maGamma = -1, maGammaConstant = -1;
+  auto* medial = app.add_subcommand("medial-axis", "Write the Integer Medial Axis as a label image");
+  medial->add_option("input", maInput, "Label map")->required();
+  medial->add_option("-o,--output", maOutput, "Output label image (.nrrd .nii.gz .mha)")->required();
+  medial->add_option("--label", maLabel, "Only this label (default: every label, background too)");
+  medial->add_option("--prune", maPrune, "none, constant, linear, sqrt, constant-linear (default)");
+  medial->add_option("--gamma", maGamma, "Pruning parameter (see MedialAxis.h for its scaling)");
+  medial->add_option("--gamma-constant", maGammaConstant, "Constant floor of constant-linear (voxels)");
+
+  std::string szInput, szOutput;
+  MeshOptions szOpts;
+  auto* sizingCmd = app.add_subcommand("sizing", "Write the adaptive sizing field (mm) as a float image");
+  sizingCmd->add_option("input", szInput, "Label map")->required();
+  sizingCmd->add_option("-o,--output", szOutput, "Output image (.nrrd .nii.gz .mha)")->required();
+  sizingCmd->add_option("--preset", szOpts.preset, "Parameter preset: coarse, default, fine");
+  sizingCmd->add_option("--set", szOpts.sets, "Set a parameter: key=value (sizing_scale, h_min, h_max, gradation)");
+
   auto* params = app.add_subcommand("parameters", "List the parameters accepted by --set");
 
   try {
@@ -416,6 +501,8 @@ int main(int argc, char** argv) {
     if (*quality) return runQuality(qualityMesh, qualityLabels, qualityJson);
     if (*info) return runInfo(infoInput, infoJson);
     if (*phantom) return runPhantom(phantomOut, phantomVoxel);
+    if (*medial) return runMedialAxis(maInput, maOutput, maLabel, maPrune, maGamma, maGammaConstant);
+    if (*sizingCmd) return runSizing(szInput, szOutput, szOpts);
     if (*params) {
       for (const auto& d : parameterDescriptors())
         std::printf("%-24s %-7s default %-10s %-8s %s\n", d.key.c_str(), d.type.c_str(),

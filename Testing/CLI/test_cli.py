@@ -87,6 +87,26 @@ info = json.loads(r.stdout)
 check(len([l for l in info["labels"] if l["id"] != 0]) >= 4, "phantom has >= 4 materials")
 check(info["quadruple_cells"] >= 1, "phantom has a quadruple point")
 
+# --- medial axis and sizing field as images ---------------------------------------------------
+ma = os.path.join(TMP, "phantom_ma.nrrd")
+r = run("medial-axis", phantom, "-o", ma)
+check(r.returncode == 0 and os.path.exists(ma), "medial-axis writes a label image")
+r = run("info", ma, "--json")
+ids = sorted(l["id"] for l in json.loads(r.stdout)["labels"]) if r.returncode == 0 else []
+check(ids and ids[0] == -1 and set(ids) <= {-1, 0, 1, 2, 3, 4, 5} and len(ids) >= 6,
+      "medial-axis image holds the labels whose axis passes there (-1 elsewhere): %s" % ids)
+r = run("medial-axis", phantom, "-o", os.path.join(TMP, "ma2.nrrd"), "--label", "2", "--prune", "linear", "--gamma", "1.2")
+check(r.returncode == 0, "medial-axis --label --prune --gamma")
+r = run("medial-axis", phantom, "-o", os.path.join(TMP, "ma3.nrrd"), "--prune", "bogus")
+check(r.returncode == EXIT["invalid-argument"] and not os.path.exists(os.path.join(TMP, "ma3.nrrd")),
+      "medial-axis rejects an unknown pruning")
+size = os.path.join(TMP, "phantom_size.nrrd")
+r = run("sizing", phantom, "-o", size, "--set", "sizing_scale=1")
+check(r.returncode == 0 and os.path.exists(size) and "target edge length" in r.stderr,
+      "sizing writes the sizing field (%s)" % r.stderr.strip()[-120:])
+r = run("info", size)
+check(r.returncode == EXIT["not-a-label-map"], "the sizing field is a float image in mm (not labels)")
+
 # --- every XML flag is accepted (Slicer style: flags, then input, output) ----------------------
 small = os.path.join(TMP, "ball.nrrd")
 write_nrrd(small, (16, 16, 16), ball_values(16))
