@@ -256,14 +256,7 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
         // The particles as the system left them (junction particles carry their label sets).
         std::vector<Particle> plist = ps.particles;
         if (plist.empty()) {
-          for (size_t j = 0; j < junctions.particles.size(); ++j) {
-            Particle p;
-            p.local = junctions.particles[j].local;
-            p.a = junctions.particles[j].labels[0];
-            p.b = junctions.particles[j].labels[1];
-            p.junction = int32_t(j);
-            plist.push_back(p);
-          }
+          plist = junctionParticles(junctions);
           for (uint32_t i : samples.selected) {
             Particle p;
             p.local = samples.all[i].local;

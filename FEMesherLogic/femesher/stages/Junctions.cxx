@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
+#include <femesher/SpatialHash.h>
 #include <femesher/stages/Junctions.h>
 
 #include <algorithm>
@@ -82,15 +83,6 @@ bool leading(const IndicatorField& f, const uint16_t* l, int n, const Vec3& x, d
   return true;
 }
 
-struct Key {
-  int64_t x, y, z;
-  bool operator==(const Key& o) const { return x == o.x && y == o.y && z == o.z; }
-};
-struct KeyHash {
-  size_t operator()(const Key& k) const {
-    return size_t(k.x * 73856093LL ^ k.y * 19349663LL ^ k.z * 83492791LL);
-  }
-};
 
 }  // namespace
 
@@ -171,16 +163,16 @@ Junctions findJunctions(const IndicatorField& field, const SizingFunction& sizin
   double hMax = 0;
   for (const auto& p : out.candidates) hMax = std::max(hMax, params.spacingFactor * sizing(canonical(p)));
   const double cell = std::max(hMax, smin);
-  std::unordered_map<Key, std::vector<uint32_t>, KeyHash> grid;
+  std::unordered_map<CellKey, std::vector<uint32_t>, CellKeyHash> grid;
   auto keyOf = [&](const Vec3& c) {
-    return Key{int64_t(std::floor(c[0] / cell)), int64_t(std::floor(c[1] / cell)),
+    return CellKey{int64_t(std::floor(c[0] / cell)), int64_t(std::floor(c[1] / cell)),
                int64_t(std::floor(c[2] / cell))};
   };
   for (uint32_t i : order) {
     const JunctionPoint& p = out.candidates[i];
     const Vec3 c = canonical(p);
     const double r = 0.75 * params.spacingFactor * sizing(c);
-    const Key key = keyOf(c);
+    const CellKey key = keyOf(c);
     bool ok = true;
     for (int dz = -1; dz <= 1 && ok; ++dz)
       for (int dy = -1; dy <= 1 && ok; ++dy)

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
+#include <femesher/SpatialHash.h>
 #include <femesher/stages/ParticleSystem.h>
 
 #include <algorithm>
@@ -36,13 +37,6 @@ double kernelSecondDerivative(double r, double s) {
 }
 
 double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-
-uint64_t mix64(uint64_t x) {
-  x += 0x9e3779b97f4a7c15ull;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-  return x ^ (x >> 31);
-}
 
 struct Surface {
   const IndicatorField& f;
@@ -89,17 +83,6 @@ struct Surface {
       l = toLocal({c[0] + step[0], c[1] + step[1], c[2] + step[2]});
     }
     return false;
-  }
-};
-
-struct CellKey {
-  int64_t x, y, z;
-  bool operator==(const CellKey& o) const { return x == o.x && y == o.y && z == o.z; }
-};
-struct CellKeyHash {
-  size_t operator()(const CellKey& k) const {
-    return size_t(mix64(uint64_t(k.x) * 73856093ull ^ uint64_t(k.y) * 19349663ull ^
-                        uint64_t(k.z) * 83492791ull));
   }
 };
 
@@ -160,6 +143,20 @@ struct Grid {
 
 }  // namespace
 
+std::vector<Particle> junctionParticles(const Junctions& junctions) {
+  std::vector<Particle> out;
+  out.reserve(junctions.particles.size());
+  for (size_t j = 0; j < junctions.particles.size(); ++j) {
+    Particle p;
+    p.local = junctions.particles[j].local;
+    p.a = junctions.particles[j].labels[0];
+    p.b = junctions.particles[j].labels[1];
+    p.junction = int32_t(j);
+    out.push_back(p);
+  }
+  return out;
+}
+
 ParticleSystemResult runParticleSystem(const IndicatorField& field, const SurfaceSamples& seeds,
                                        const Junctions& junctions, const SizingFunction& sizing,
                                        const LabelVolume& input,
@@ -171,15 +168,7 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
   ParticleSystemResult res;
 
   // --- Particles: fixed junction particles, then seeds away from them ----------------------
-  std::vector<Particle> P;
-  for (size_t j = 0; j < junctions.particles.size(); ++j) {
-    Particle p;
-    p.local = junctions.particles[j].local;
-    p.a = junctions.particles[j].labels[0];
-    p.b = junctions.particles[j].labels[1];
-    p.junction = int32_t(j);
-    P.push_back(p);
-  }
+  std::vector<Particle> P = junctionParticles(junctions);
   const size_t nFixed = P.size();
   {
     std::vector<Vec3> jc(nFixed);

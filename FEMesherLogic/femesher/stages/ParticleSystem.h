@@ -67,6 +67,9 @@ struct ParticleSystemResult {
   size_t added = 0, removed = 0, lost = 0;
 };
 
+/// The fixed junction particles, in the order of `junctions.particles`.
+std::vector<Particle> junctionParticles(const Junctions& junctions);
+
 ParticleSystemResult runParticleSystem(const IndicatorField& field, const SurfaceSamples& seeds,
                                        const Junctions& junctions, const SizingFunction& sizing,
                                        const LabelVolume& input,
