@@ -247,6 +247,7 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
     BoundarySurface surface;
     LocalDelaunayResult ldt;
     double junctionShare = 0;
+    bool ldtUsed = false;
     const bool useLdt = params.surfaceMesher == "ldt";
     {
       StageScope st(ctx, result.timings, "BoundaryMesh");
@@ -266,26 +267,32 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
           }
         }
         ldt = buildLocalDelaunaySurface(*field, plist, junctions, *surface.delaunay, ctx);
-        // Replace the restricted-Delaunay triangles by the LDT ones (used vertices only).
-        std::vector<int32_t> id(plist.size(), -1);
-        surface.points.clear();
-        surface.triangles.clear();
-        surface.trianglePairs = ldt.trianglePairs;
-        for (const auto& t : ldt.triangles) {
-          std::array<int32_t, 3> tri;
-          for (int k = 0; k < 3; ++k) {
-            int32_t& v = id[size_t(t[k])];
-            if (v < 0) {
-              v = int32_t(surface.points.size());
-              surface.points.push_back(vol.localToCanonical(plist[size_t(t[k])].local));
-            }
-            tri[k] = v;
-          }
-          surface.triangles.push_back(tri);
-        }
-        if (ldt.openEdgesAfter > 0)
+        if (ldt.openEdgesAfter > 0) {
+          // An open surface would let TetGen's regions leak into each other (wrong materials):
+          // keep the watertight restricted-Delaunay surface instead, and say so.
           ctx.warn("The local Delaunay surface still has " + std::to_string(ldt.openEdgesAfter) +
-                   " open edges after hole filling; TetGen may fall back.");
+                   " open edges after hole filling; the restricted Delaunay surface (watertight) "
+                   "is used instead.");
+        } else {
+          // Replace the restricted-Delaunay triangles by the LDT ones (used vertices only).
+          std::vector<int32_t> id(plist.size(), -1);
+          surface.points.clear();
+          surface.triangles.clear();
+          surface.trianglePairs = ldt.trianglePairs;
+          for (const auto& t : ldt.triangles) {
+            std::array<int32_t, 3> tri;
+            for (int k = 0; k < 3; ++k) {
+              int32_t& v = id[size_t(t[k])];
+              if (v < 0) {
+                v = int32_t(surface.points.size());
+                surface.points.push_back(vol.localToCanonical(plist[size_t(t[k])].local));
+              }
+              tri[k] = v;
+            }
+            surface.triangles.push_back(tri);
+          }
+          ldtUsed = true;
+        }
       }
       for (int m : surface.repairedLabels)
         ctx.warn("Label " + std::to_string(vol.userLabel[m]) +
@@ -375,9 +382,9 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
                      {"tetgen_regions", double(vm.regions)},
                      {"surface_checksum", surfaceChecksum(surface)},
                      {"junction_particles_on_triple_edges", junctionShare},
-                     {"surface_open_edges", double(useLdt ? ldt.openEdgesAfter
-                                                            : countOpenEdges(surface.triangles,
-                                                                             surface.trianglePairs))},
+                     {"surface_open_edges", double(countOpenEdges(surface.triangles,
+                                                                  surface.trianglePairs))},
+                     {"ldt_open_edges", double(ldt.openEdgesAfter)},
                      {"ldt_open_edges_before_filling", double(ldt.openEdgesBefore)},
                      {"ldt_holes_filled", double(ldt.holesFilled)},
                      {"ldt_non_manifold_removed", double(ldt.nonManifoldRemoved)},
@@ -407,6 +414,8 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
     for (const auto& [k, v] : result.counts) counts[k] = v;
     report["counts"] = counts;
     report["surface_mesher"] = params.surfaceMesher;
+    report["surface_mesher_used"] = useLdt && !ldtUsed ? "delaunay (ldt surface not watertight)"
+                                                        : params.surfaceMesher;
     report["volume_mesh"] = {{"method", vm.method}, {"tetgen_switches", vm.switches},
                              {"dropped_cavity_tets", vm.droppedCavityTets}};
     report["quality"] = json::parse(qualityReportToJson(result.quality, true));

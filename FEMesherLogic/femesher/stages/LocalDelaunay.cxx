@@ -215,6 +215,24 @@ LocalDelaunayResult buildLocalDelaunaySurface(const IndicatorField& field,
     (void)hMax;
   }
 
+  // A triangle whose three corners all lie on one triple line of this patch spans the outside of
+  // the patch (the sheet ends at the line): never part of the surface.
+  auto alongOneLine = [&](int32_t u, int32_t v, int32_t w, uint32_t patch) {
+    if (P[size_t(u)].junction < 0 || P[size_t(v)].junction < 0 || P[size_t(w)].junction < 0)
+      return false;
+    const auto [pa, pb] = patchPairs[patch];
+    const JunctionPoint& ju = junctions.particles[size_t(P[size_t(u)].junction)];
+    const JunctionPoint& jv = junctions.particles[size_t(P[size_t(v)].junction)];
+    const JunctionPoint& jw = junctions.particles[size_t(P[size_t(w)].junction)];
+    for (int k = 0; k < ju.count; ++k) {
+      const uint16_t c = ju.labels[k];
+      if (c == pa || c == pb) continue;
+      if (jv.contains(pa, c) && jv.contains(pb, c) && jw.contains(pa, c) && jw.contains(pb, c))
+        return true;
+    }
+    return false;
+  };
+
   // Stars, in parallel over particles; votes merged per chunk.
   const int threads = resolveThreads(ctx.threads());
   const int chunks = threads * 4;
@@ -272,7 +290,8 @@ LocalDelaunayResult buildLocalDelaunaySurface(const IndicatorField& field,
         auto fc = dt.incident_faces(vp), done = fc;
         if (fc == nullptr) continue;
         do {
-          if (!dt.is_infinite(fc)) {
+          if (!dt.is_infinite(fc) && !alongOneLine(fc->vertex(0)->info(), fc->vertex(1)->info(),
+                                                    fc->vertex(2)->info(), patch)) {
             TriKey key{{fc->vertex(0)->info(), fc->vertex(1)->info(), fc->vertex(2)->info()}, patch};
             std::sort(key.v.begin(), key.v.end());
             found[size_t(chunk)].emplace_back(key, np);
