@@ -46,7 +46,7 @@ struct MeshingParameters {
   /// "adaptive": target edge length from the Integer Medial Axis local feature size
   /// (h = clamp(sizing_scale x lfs, h_min, h_max), graded); "uniform": one edge length everywhere.
   std::string sizing = "adaptive";
-  double sizingScale = 1.5;   ///< epsilon: h = epsilon x local feature size
+  double sizingScale = 1.25;  ///< epsilon: h = epsilon x local feature size
   double sizingHMin = 0;      ///< mm; 0 = automatic (half the uniform edge length)
   double sizingHMax = 0;      ///< mm; 0 = automatic (edge_length_factor x 2.5 x mean spacing)
   double gradation = 0.4;     ///< Lipschitz bound: h grows at most this many mm per mm

@@ -23,11 +23,13 @@ namespace {
 struct Case {
   std::string file;
   int64_t minVoxels;
+  double minDice = 0.85;  ///< for labels of >= 1,000 voxels
 };
 
 std::ostream& operator<<(std::ostream& os, const Case& c) { return os << c.file; }
 
-void checkVolume(const LabelVolume& v, const MeshingParameters& p, const std::string& name) {
+void checkVolume(const LabelVolume& v, const MeshingParameters& p, const std::string& name,
+                 double minDice = 0.85) {
   RunContext ctx;
   auto r = runPipeline(v, p, ctx);
   ASSERT_TRUE(r.isOk()) << name << ": " << r.status().message();
@@ -50,10 +52,14 @@ void checkVolume(const LabelVolume& v, const MeshingParameters& p, const std::st
   std::string summary;
   for (const auto& mf : r->fidelity.materials) {
     if (mf.voxels >= 1000)
-      EXPECT_GE(mf.dice, 0.85) << name << ": label " << mf.label << " (" << mf.voxels << " voxels)";
+      EXPECT_GE(mf.dice, minDice) << name << ": label " << mf.label << " (" << mf.voxels << " voxels)";
     char buf[96];
     std::snprintf(buf, sizeof buf, " %d:%.3f", mf.label, mf.dice);
     summary += buf;
+  }
+  if (minDice >= 0.9) {
+    // The particle path's target (issue 4): boundary distance mesh -> labels <= 1 voxel at p99.
+    EXPECT_LE(r->fidelity.meshToLabels.p99, 1.0) << name;
   }
   size_t below10 = 0;
   if (const auto* md = r->quality.all.find("min_dihedral")) below10 = md->badCount;
@@ -81,17 +87,17 @@ TEST_P(RealData, MeshesWithAllLabelsConformalAndFaithful) {
   ASSERT_TRUE(v.isOk()) << v.status().message();
   MeshingParameters p;
   p.minVoxels = c.minVoxels;
-  checkVolume(v.value(), p, c.file);
+  checkVolume(v.value(), p, c.file, c.minDice);
 }
 
 INSTANTIATE_TEST_SUITE_P(
     SharedData, RealData,
     ::testing::Values(Case{"420.nrrd", 1}, Case{"40420.nrrd", 1}, Case{"12323.nrrd", 1},
-                      Case{"20012323.nrrd", 1}, Case{"mickey.nrrd", 10},
-                      Case{"spheres_argmax.nrrd", 10}, Case{"colin27_v3.nrrd", 10},
+                      Case{"20012323.nrrd", 1}, Case{"mickey.nrrd", 10, 0.90},
+                      Case{"spheres_argmax.nrrd", 10, 0.90}, Case{"colin27_v3.nrrd", 10, 0.90},
                       Case{"digimouse.nrrd", 10}, Case{"frogtissue.nrrd", 10},
                       Case{"example_seg.nii.gz", 10}, Case{"example_seg_dicom.nii.gz", 10},
-                      Case{"9135902_00m_WB01.nii.gz", 10}),
+                      Case{"9135902_00m_WB01.nii.gz", 10, 0.90}),
     [](const ::testing::TestParamInfo<Case>& info) {
       std::string n = info.param.file;
       for (auto& ch : n)
@@ -101,5 +107,5 @@ INSTANTIATE_TEST_SUITE_P(
 
 TEST(RealDataPhantom, BuiltInPhantomMeshes) {
   const LabelVolume v = makePhantom();
-  checkVolume(v, MeshingParameters{}, "phantom");
+  checkVolume(v, MeshingParameters{}, "phantom", 0.90);
 }
