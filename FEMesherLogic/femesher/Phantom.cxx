@@ -31,7 +31,8 @@ LabelVolume makePhantom(const PhantomOptions& o) {
         } else if (rHead < headR + 2.5 && z > headZ + 4) {
           label = 4;  // cartilage cap
         }
-        const bool stem = rAxis < 3.5 && z > 40 && z < 92;
+        // Tapered stem: 2.5 mm radius at its tip in the marrow canal, 4 mm where it leaves the head.
+        const bool stem = z > 20 && z < 92 && rAxis < 2.5 + 1.5 * (z - 20) / 72;
         const bool screw = std::hypot(y - cy, z - 35) < 2.5 && x > 14 && x < 50;
         if (stem || screw) label = 5;
         v.labels[v.index(i, j, k)] = label;
