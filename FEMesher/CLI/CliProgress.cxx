@@ -2,6 +2,7 @@
 #include "CliProgress.h"
 
 #include <cstdio>
+#include <cstdlib>
 #include <unistd.h>
 
 namespace femesher::cli {
@@ -42,7 +43,9 @@ void CliProgress::update(const std::string& stage, double stageFraction, double 
 }
 
 void CliProgress::log(LogLevel level, const std::string& message) {
-  if (level == LogLevel::Debug) return;
+  // Debug lines (per-iteration figures) only with FEMESHER_DEBUG set in the environment.
+  static const bool showDebug = std::getenv("FEMESHER_DEBUG") != nullptr;
+  if (level == LogLevel::Debug && !showDebug) return;
   if (mode_ == Mode::Quiet && level != LogLevel::Warning) return;
   if (barShown_) {
     std::fprintf(stderr, "\n");

@@ -289,7 +289,11 @@ int runInfo(const std::string& input, bool asJson) {
   return 0;
 }
 
-int runQuality(const std::string& meshPath, const std::string& labelsPath, bool asJson) {
+int runQuality(const std::string& meshPath, const std::string& labelsPath,
+               const std::string& rasterPath, bool asJson) {
+  if (!rasterPath.empty() && labelsPath.empty())
+    return fail(Status(ErrorCode::InvalidArgument,
+                       "--raster needs --labels: the mesh is sampled on that label map's voxel grid"));
   auto mesh = readMesh(meshPath);
   if (!mesh) return fail(mesh.status());
   const QualityReport q = computeQuality(mesh.value());
@@ -299,6 +303,9 @@ int runQuality(const std::string& meshPath, const std::string& labelsPath, bool 
     auto labels = readLabelMap(labelsPath);
     if (!labels) return fail(labels.status());
     fr = computeFidelity(labels.value(), mesh.value());
+    if (!rasterPath.empty())
+      if (Status st = writeLabelMap(rasterizeMesh(labels.value(), mesh.value()), rasterPath); !st)
+        return fail(st);
   }
   if (asJson) {
     std::string text = "{\n\"quality\": " + qualityReportToJson(q, true);
@@ -447,11 +454,15 @@ int main(int argc, char** argv) {
   auto* mesh = app.add_subcommand("mesh", "Mesh a label map");
   addMeshOptions(mesh, meshOpts, false);
 
-  std::string qualityMesh, qualityLabels;
+  std::string qualityMesh, qualityLabels, qualityRaster;
   bool qualityJson = false;
   auto* quality = app.add_subcommand("quality", "Element quality (and fidelity) of a mesh");
   quality->add_option("mesh", qualityMesh, "Mesh (.vtu .msh .mesh)")->required();
   quality->add_option("--labels", qualityLabels, "Label map to compare with (fidelity)");
+  quality->add_option("--raster", qualityRaster,
+                      "Write the mesh sampled on the label map's voxel centres (label of the tet "
+                      "containing each centre, 0 outside) to this label map file: compare it with "
+                      "--labels to see where they disagree");
   quality->add_flag("--json", qualityJson, "JSON output");
 
   std::string infoInput;
@@ -498,7 +509,7 @@ int main(int argc, char** argv) {
   }
   try {
     if (*mesh) return runMesh(meshOpts);
-    if (*quality) return runQuality(qualityMesh, qualityLabels, qualityJson);
+    if (*quality) return runQuality(qualityMesh, qualityLabels, qualityRaster, qualityJson);
     if (*info) return runInfo(infoInput, infoJson);
     if (*phantom) return runPhantom(phantomOut, phantomVoxel);
     if (*medial) return runMedialAxis(maInput, maOutput, maLabel, maPrune, maGamma, maGammaConstant);

@@ -43,8 +43,9 @@ const std::vector<Binding>& bindings() {
         [](MeshingParameters& p, double x) { p.minVoxels = int64_t(x); },
         [](const MeshingParameters& p) { return double(p.minVoxels); });
     add({"smoothing_sigma", "double", "voxels", "", 0, 3, "Surface smoothing",
-         "Gaussian smoothing of each material's signed distance, in voxels. 0 keeps the voxel "
-         "staircase; about 0.5-1 removes it without moving surfaces by more than half a voxel.",
+         "Gaussian smoothing of each material's signed distance, in voxels. 0 = the trilinear "
+         "signed distance (sub-voxel already); 0.5-1 rounds the staircase more but shrinks thin "
+         "and small labels (surfaces never pass a voxel centre).",
          true},
         [](MeshingParameters& p, double x) { p.smoothingSigma = x; },
         [](const MeshingParameters& p) { return p.smoothingSigma; });
@@ -89,6 +90,13 @@ const std::vector<Binding>& bindings() {
          "0 uses the initial samples as they are.", true},
         [](MeshingParameters& p, double x) { p.particleIterations = int(x); },
         [](const MeshingParameters& p) { return double(p.particleIterations); });
+    add({"facet_distance", "double", "voxels", "", 0, 10, "Surface accuracy",
+         "Largest distance, in voxels, between an interface triangle's centroid and the smooth "
+         "interface; triangles farther off get a point inserted on the interface (surface "
+         "refinement after the particle system). Smaller = thin and curved parts follow the labels "
+         "more closely, at more elements. 0 = no refinement.", true},
+        [](MeshingParameters& p, double x) { p.facetDistance = x; },
+        [](const MeshingParameters& p) { return p.facetDistance; });
     add({"max_radius_edge_ratio", "double", "", "", 0, 10, "Quality bound (radius-edge)",
          "TetGen's bound on the circumradius / shortest edge of each tet (-q). 0 disables quality "
          "refinement. Values below about 1.2 may not terminate.", true},
@@ -291,11 +299,13 @@ Result<MeshingParameters> presetParameters(const std::string& name) {
   MeshingParameters p;
   if (name == "default") return p;
   if (name == "coarse") {
-    p.edgeLengthFactor = 3.0;
+    p.edgeLengthFactor = 4.5;
+    p.facetDistance = 0.75;
     return p;
   }
   if (name == "fine") {
-    p.edgeLengthFactor = 1.25;
+    p.edgeLengthFactor = 2.0;
+    p.facetDistance = 0.35;
     return p;
   }
   return Result<MeshingParameters>(ErrorCode::InvalidArgument,

@@ -65,7 +65,8 @@ double surfaceChecksum(const BoundarySurface& s) {
 /// Share of junction particles that are vertices of an edge shared by the triangles of three or
 /// more materials (i.e. the triple lines appear as mesh edges there).
 double junctionsOnTripleEdges(const BoundarySurface& s, const PreprocessedVolume& vol,
-                              const std::vector<Vec3>& particlesLocal, size_t junctionCount) {
+                              const std::vector<Vec3>& particlesLocal, size_t junctionCount,
+                              RunContext& ctx) {
   if (junctionCount == 0) return 1.0;
   std::map<Vec3, int32_t> vid;
   for (size_t i = 0; i < s.points.size(); ++i) vid.emplace(s.points[i], int32_t(i));
@@ -83,11 +84,14 @@ double junctionsOnTripleEdges(const BoundarySurface& s, const PreprocessedVolume
     best[size_t(e.first)] = std::max(best[size_t(e.first)], m.size());
     best[size_t(e.second)] = std::max(best[size_t(e.second)], m.size());
   }
-  size_t ok = 0;
+  size_t ok = 0, notVertex = 0;
   for (size_t j = 0; j < junctionCount && j < particlesLocal.size(); ++j) {
     auto it = vid.find(vol.localToCanonical(particlesLocal[j]));
-    if (it != vid.end() && best[size_t(it->second)] >= 3) ++ok;
+    if (it == vid.end()) ++notVertex;
+    else if (best[size_t(it->second)] >= 3) ++ok;
   }
+  ctx.debug("Junction particles: " + std::to_string(junctionCount) + ", on triple edges " +
+            std::to_string(ok) + ", not a surface vertex " + std::to_string(notVertex));
   return double(ok) / double(junctionCount);
 }
 
@@ -251,8 +255,9 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
     const bool useLdt = params.surfaceMesher == "ldt";
     {
       StageScope st(ctx, result.timings, "BoundaryMesh");
-      surface = buildBoundaryMesh(*field, particles, samples, ctx);
-      junctionShare = junctionsOnTripleEdges(surface, vol, particles, junctions.particles.size());
+      const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+      surface = buildBoundaryMesh(*field, particles, samples, ctx, params.facetDistance * smin);
+      junctionShare = junctionsOnTripleEdges(surface, vol, particles, junctions.particles.size(), ctx);
       if (useLdt) {
         // The particles as the system left them (junction particles carry their label sets).
         std::vector<Particle> plist = ps.particles;
@@ -384,6 +389,8 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
                      {"junction_particles_on_triple_edges", junctionShare},
                      {"surface_open_edges", double(countOpenEdges(surface.triangles,
                                                                   surface.trianglePairs))},
+                     {"surface_refinement_points", double(surface.refinementPoints)},
+                     {"voxel_centre_refinement_points", double(surface.voxelCentrePoints)},
                      {"ldt_open_edges", double(ldt.openEdgesAfter)},
                      {"ldt_open_edges_before_filling", double(ldt.openEdgesBefore)},
                      {"ldt_holes_filled", double(ldt.holesFilled)},

@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
 #include <femesher/Status.h>
 #include <femesher/stages/BoundaryMesh.h>
@@ -9,6 +10,7 @@
 #include <CGAL/Triangulation_vertex_base_with_info_3.h>
 
 #include <algorithm>
+#include <chrono>
 #include <random>
 #include <unordered_map>
 
@@ -110,17 +112,378 @@ int labelCell(const IndicatorField& field, const Delaunay& dt, Delaunay::Cell_ha
 }
 
 void labelAll(const IndicatorField& field, Delaunay& dt, RunContext& ctx) {
-  size_t n = 0;
-  for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c) {
-    c->info() = labelCell(field, dt, c);
-    if ((++n & 0x3FFFF) == 0) ctx.checkCancel();
+  std::vector<Delaunay::Cell_handle> cells;
+  cells.reserve(dt.number_of_cells());
+  for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c) cells.push_back(c);
+  parallelFor(cells.size(), resolveThreads(ctx.threads()), [&](size_t b, size_t e, int) {
+    for (size_t i = b; i < e; ++i) {
+      if ((i & 0xFFFF) == 0 && ctx.isCanceled()) return;
+      cells[i]->info() = labelCell(field, dt, cells[i]);
+    }
+  });
+  ctx.checkCancel();
+}
+
+/// Surface refinement by facet distance (Boissonnat & Oudot's criterion, CGAL's
+/// facet_distance): for every interface triangle (a, b), the interface f_a = f_b is searched along
+/// the triangle's normal through its centroid; when it is farther than `delta` (mm), the crossing
+/// is inserted as a new vertex. Candidates are taken farthest first, at most one per
+/// neighbourhood of half the triangle's shortest edge and never closer than that to an existing
+/// vertex, so the sampling stays well spaced. Rounds repeat until no triangle is off (or
+/// kRounds). Returns the number of points inserted; their info is kRefinementPoint.
+constexpr int32_t kRefinementPoint = -2;
+constexpr int kRefineRounds = 10;
+
+double secondsSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+/// A point to insert on an interface: how far off the surface was there (the order: farthest
+/// first) and how close another vertex may be.
+struct Candidate {
+  double deviation;
+  Vec3 point;
+  double exclusion;
+};
+
+/// Inserts `cand` (sorted farthest first) greedily: a candidate closer than its exclusion radius
+/// to an already inserted candidate or to any vertex of the triangulation is skipped. Returns the
+/// new vertices (info = kRefinementPoint).
+std::vector<Delaunay::Vertex_handle> insertCandidates(Delaunay& dt, const std::vector<Candidate>& cand,
+                                                      double cell) {
+  std::unordered_map<uint64_t, std::vector<Vec3>> grid;
+  auto key = [](int64_t x, int64_t y, int64_t z) {
+    return (uint64_t(x & 0x1FFFFF) << 42) | (uint64_t(y & 0x1FFFFF) << 21) | uint64_t(z & 0x1FFFFF);
+  };
+  std::vector<Delaunay::Vertex_handle> fresh;
+  Delaunay::Cell_handle hint;
+  for (const Candidate& c : cand) {
+    const int64_t cx = int64_t(std::floor(c.point[0] / cell)),
+                  cy = int64_t(std::floor(c.point[1] / cell)),
+                  cz = int64_t(std::floor(c.point[2] / cell));
+    const int64_t r = int64_t(std::ceil(c.exclusion / cell));
+    bool close = false;
+    for (int64_t x = cx - r; x <= cx + r && !close; ++x)
+      for (int64_t y = cy - r; y <= cy + r && !close; ++y)
+        for (int64_t z = cz - r; z <= cz + r && !close; ++z) {
+          auto it = grid.find(key(x, y, z));
+          if (it == grid.end()) continue;
+          for (const Vec3& q : it->second) {
+            const double dx = q[0] - c.point[0], dy = q[1] - c.point[1], dz = q[2] - c.point[2];
+            if (dx * dx + dy * dy + dz * dz < c.exclusion * c.exclusion) {
+              close = true;
+              break;
+            }
+          }
+        }
+    if (close) continue;
+    const Point pt(c.point[0], c.point[1], c.point[2]);
+    const auto nv = dt.nearest_vertex(pt, hint);
+    if (CGAL::squared_distance(nv->point(), pt) < c.exclusion * c.exclusion) continue;
+    const size_t before = dt.number_of_vertices();
+    auto v = dt.insert(pt, nv->cell());
+    hint = v->cell();
+    if (dt.number_of_vertices() == before) continue;
+    v->info() = kRefinementPoint;
+    fresh.push_back(v);
+    grid[key(cx, cy, cz)].push_back(c.point);
   }
+  return fresh;
+}
+
+/// Labels the cells created by inserting `fresh`: they are the cells incident to the new
+/// vertices (a cell made by one insertion and destroyed by a later one is replaced by cells of
+/// the later vertex).
+void relabelAround(const IndicatorField& field, Delaunay& dt,
+                   const std::vector<Delaunay::Vertex_handle>& fresh, int threads) {
+  std::vector<Delaunay::Cell_handle> cells;
+  for (auto v : fresh) dt.incident_cells(v, std::back_inserter(cells));
+  std::sort(cells.begin(), cells.end());
+  cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+  parallelFor(cells.size(), threads, [&](size_t b, size_t e, int) {
+    for (size_t i = b; i < e; ++i) cells[i]->info() = labelCell(field, dt, cells[i]);
+  });
+}
+
+size_t refineFacetDistance(const IndicatorField& field, Delaunay& dt, double delta,
+                           RunContext& ctx) {
+  const PreprocessedVolume& vol = field.volume();
+  const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+  const int threads = resolveThreads(ctx.threads());
+  size_t inserted = 0;
+  struct Facet {
+    std::array<Vec3, 3> p;
+    int a, b;
+  };
+  // Round 0 looks at every interface facet; later rounds only at the facets of cells created by
+  // the previous round's insertions (the cells incident to the new vertices), the rest did not
+  // change.
+  std::vector<Delaunay::Vertex_handle> fresh;
+  auto addFacet = [](std::vector<Facet>& out, Delaunay::Cell_handle c, int i) {
+    const auto n = c->neighbor(i);
+    if (c->info() == n->info()) return;
+    Facet x;
+    x.a = std::min(c->info(), n->info());
+    x.b = std::max(c->info(), n->info());
+    for (int k = 0; k < 3; ++k) {
+      const Point& q = c->vertex((i + 1 + k) % 4)->point();
+      x.p[size_t(k)] = {q.x(), q.y(), q.z()};
+    }
+    out.push_back(x);
+  };
+  for (int round = 0; round < kRefineRounds; ++round) {
+    const auto t0 = std::chrono::steady_clock::now();
+    std::vector<Facet> facets;
+    if (round == 0) {
+      for (auto f = dt.finite_facets_begin(); f != dt.finite_facets_end(); ++f)
+        addFacet(facets, f->first, f->second);
+    } else {
+      std::vector<Delaunay::Cell_handle> cells;
+      for (auto v : fresh) dt.incident_cells(v, std::back_inserter(cells));
+      std::sort(cells.begin(), cells.end());
+      cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
+      std::vector<std::pair<std::array<Point, 3>, std::pair<Delaunay::Cell_handle, int>>> keyed;
+      for (auto c : cells) {
+        if (dt.is_infinite(c)) continue;
+        for (int i = 0; i < 4; ++i) {
+          if (dt.is_infinite(c->neighbor(i)) || c->info() == c->neighbor(i)->info()) continue;
+          std::array<Point, 3> key{c->vertex((i + 1) % 4)->point(), c->vertex((i + 2) % 4)->point(),
+                                   c->vertex((i + 3) % 4)->point()};
+          std::sort(key.begin(), key.end());
+          keyed.push_back({key, {c, i}});
+        }
+      }
+      // Each facet once, in an order that does not depend on heap addresses.
+      std::sort(keyed.begin(), keyed.end(),
+                [](const auto& x, const auto& y) { return x.first < y.first; });
+      for (size_t q = 0; q < keyed.size(); ++q)
+        if (q == 0 || keyed[q].first != keyed[q - 1].first)
+          addFacet(facets, keyed[q].second.first, keyed[q].second.second);
+    }
+    std::vector<Candidate> cand(facets.size(), Candidate{0, {0, 0, 0}, 0});
+    parallelFor(facets.size(), threads, [&](size_t lo, size_t hi, int) {
+      for (size_t i = lo; i < hi; ++i) {
+        if ((i & 0xFFFF) == 0 && ctx.isCanceled()) return;
+        const Facet& F = facets[i];
+        Vec3 e[3], g{0, 0, 0};
+        double minEdge = 1e300, maxEdge = 0;
+        for (int k = 0; k < 3; ++k) {
+          const Vec3 &u = F.p[size_t(k)], &v = F.p[size_t((k + 1) % 3)];
+          e[k] = {v[0] - u[0], v[1] - u[1], v[2] - u[2]};
+          const double l = std::sqrt(e[k][0] * e[k][0] + e[k][1] * e[k][1] + e[k][2] * e[k][2]);
+          minEdge = std::min(minEdge, l);
+          maxEdge = std::max(maxEdge, l);
+          for (int a = 0; a < 3; ++a) g[a] += u[a] / 3.0;
+        }
+        Vec3 nrm{e[0][1] * e[1][2] - e[0][2] * e[1][1], e[0][2] * e[1][0] - e[0][0] * e[1][2],
+                 e[0][0] * e[1][1] - e[0][1] * e[1][0]};
+        const double nl = std::sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
+        if (!(nl > 0) || minEdge < 2 * delta) continue;
+        for (auto& x : nrm) x /= nl;
+        // The deviation is sampled at the centroid and at the three edge midpoints (a facet can
+        // be close at its centroid and far along an edge); the farthest sample is the candidate.
+        Vec3 samplesAt[4] = {g, {}, {}, {}};
+        for (int k = 0; k < 3; ++k)
+          for (int a = 0; a < 3; ++a)
+            samplesAt[k + 1][a] = 0.5 * (F.p[size_t(k)][a] + F.p[size_t((k + 1) % 3)][a]);
+        double bestDeviation = 0;
+        Vec3 best{0, 0, 0};
+        for (const Vec3& o : samplesAt) {
+          auto phi = [&](double t) {
+            const Vec3 l =
+                vol.canonicalToLocal({o[0] + t * nrm[0], o[1] + t * nrm[1], o[2] + t * nrm[2]});
+            return field.eval(F.a, l) - field.eval(F.b, l);
+          };
+          const double m = phi(-delta), p = phi(delta);
+          if ((m <= 0) != (p <= 0)) continue;  // the interface crosses within +-delta
+          // March outwards in both directions for the nearest crossing, then bisect.
+          const double step = 0.25 * smin, reach = 0.75 * maxEdge;
+          const double p0 = phi(0);
+          double tIn = 0, tOut = 0;
+          bool found = false;
+          for (double t = step; t <= reach && !found; t += step)
+            for (double sgn : {1.0, -1.0}) {
+              const double v = phi(sgn * t);
+              if ((v <= 0) != (p0 <= 0)) {
+                tIn = sgn * (t - step);
+                tOut = sgn * t;
+                found = true;
+                break;
+              }
+            }
+          if (!found) continue;
+          const double vIn = phi(tIn);
+          for (int it = 0; it < 30; ++it) {
+            const double mid = 0.5 * (tIn + tOut);
+            if ((phi(mid) <= 0) == (vIn <= 0)) tIn = mid;
+            else tOut = mid;
+          }
+          const double t = 0.5 * (tIn + tOut);
+          if (std::fabs(t) <= std::max(delta, bestDeviation)) continue;
+          const Vec3 q{o[0] + t * nrm[0], o[1] + t * nrm[1], o[2] + t * nrm[2]};
+          // On the (a, b) interface, not in a third material.
+          const int am = field.argmax(vol.canonicalToLocal(q));
+          if (am != F.a && am != F.b) continue;
+          bestDeviation = std::fabs(t);
+          best = q;
+        }
+        if (bestDeviation == 0) continue;
+        cand[i] = {bestDeviation, best, 0.5 * minEdge};
+      }
+    });
+    ctx.checkCancel();
+    cand.erase(std::remove_if(cand.begin(), cand.end(),
+                              [](const Candidate& c) { return c.deviation == 0; }),
+               cand.end());
+    if (cand.empty()) break;
+    std::sort(cand.begin(), cand.end(), [](const Candidate& x, const Candidate& y) {
+      if (x.deviation != y.deviation) return x.deviation > y.deviation;
+      return x.point < y.point;
+    });
+    fresh = insertCandidates(dt, cand, smin);
+    const size_t roundInserted = fresh.size();
+    inserted += roundInserted;
+    ctx.debug("Facet-distance refinement round " + std::to_string(round) + ": " +
+              std::to_string(facets.size()) + " facets checked, " + std::to_string(cand.size()) +
+              " too far, " + std::to_string(roundInserted) + " points inserted (" +
+              std::to_string(secondsSince(t0)) + " s)");
+    if (roundInserted == 0) break;
+    relabelAround(field, dt, fresh, threads);
+  }
+  return inserted;
+}
+
+/// Voxel-centre refinement: every voxel centre next to another label must fall in a Delaunay tet
+/// of its own label (the label map's own test of the mesh, and what Dice counts). A centre that
+/// does not is projected onto the interface between its label and the label it fell in (Newton
+/// on f_a - f_b; the smooth surfaces keep every centre on its side, so the projection is the
+/// nearby surface point the sampling missed) and that point is inserted. Rounds repeat while
+/// points go in (at most kRefineRounds).
+size_t refineVoxelCentres(const IndicatorField& field, Delaunay& dt, RunContext& ctx) {
+  const PreprocessedVolume& vol = field.volume();
+  const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+  const int threads = resolveThreads(ctx.threads());
+  const auto& d = vol.dims;
+  // Boundary voxels (a 6-neighbour of another label), found once.
+  std::vector<std::vector<std::array<int, 3>>> perSlice(static_cast<size_t>(d[2]));
+  parallelFor(size_t(d[2]), threads, [&](size_t z0, size_t z1, int) {
+    for (size_t zz = z0; zz < z1; ++zz) {
+      const int k = int(zz);
+      for (int j = 0; j < d[1]; ++j)
+        for (int i = 0; i < d[0]; ++i) {
+          const uint16_t l = vol.at(i, j, k);
+          bool edge = false;
+          static const int o[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+          for (int q = 0; q < 6 && !edge; ++q) {
+            const int x = i + o[q][0], y = j + o[q][1], z = k + o[q][2];
+            if (x < 0 || y < 0 || z < 0 || x >= d[0] || y >= d[1] || z >= d[2]) continue;
+            edge = vol.at(x, y, z) != l;
+          }
+          if (edge) perSlice[zz].push_back({i, j, k});
+        }
+    }
+  });
+  std::vector<std::array<int, 3>> voxels;
+  for (auto& v : perSlice) voxels.insert(voxels.end(), v.begin(), v.end());
+  perSlice.clear();
+  size_t inserted = 0;
+  const size_t allVoxels = voxels.size();
+  std::vector<uint8_t> mark(vol.labels.size(), 0);
+  for (int round = 0; round < kRefineRounds; ++round) {
+    const auto t0 = std::chrono::steady_clock::now();
+    std::vector<Candidate> cand(voxels.size(), Candidate{0, {0, 0, 0}, 0});
+    std::vector<char> wrong(voxels.size(), 0);
+    const int chunks = threads * 8;
+    parallelFor(voxels.size(), threads, [&](size_t lo, size_t hi, int) {
+      Delaunay::Cell_handle hint;
+      for (size_t n = lo; n < hi; ++n) {
+        if ((n & 0xFFFF) == 0 && ctx.isCanceled()) return;
+        const auto [i, j, k] = voxels[n];
+        const Vec3 c = vol.localToCanonical({double(i), double(j), double(k)});
+        const Point pt(c[0], c[1], c[2]);
+        hint = dt.locate(pt, hint);
+        const int a = vol.at(i, j, k);
+        const int b = dt.is_infinite(hint) ? 0 : hint->info();
+        if (a == b) continue;
+        wrong[n] = 1;
+        // Newton from the centre onto f_a = f_b.
+        Vec3 l{double(i), double(j), double(k)};
+        bool ok = false;
+        for (int it = 0; it < 20; ++it) {
+          const double F = field.eval(a, l) - field.eval(b, l);
+          if (std::fabs(F) < 1e-4 * smin) {
+            ok = true;
+            break;
+          }
+          const Vec3 ga = field.gradient(a, l), gb = field.gradient(b, l);
+          const Vec3 g{(ga[0] - gb[0]) / vol.spacing[0], (ga[1] - gb[1]) / vol.spacing[1],
+                       (ga[2] - gb[2]) / vol.spacing[2]};
+          const double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+          if (g2 < 1e-20) break;
+          Vec3 step{-F * g[0] / g2, -F * g[1] / g2, -F * g[2] / g2};
+          const double len = std::sqrt(step[0] * step[0] + step[1] * step[1] + step[2] * step[2]);
+          if (len > 0.5 * smin)
+            for (auto& x : step) x *= 0.5 * smin / len;
+          const Vec3 cc = vol.localToCanonical(l);
+          l = vol.canonicalToLocal({cc[0] + step[0], cc[1] + step[1], cc[2] + step[2]});
+        }
+        if (!ok) continue;
+        const int am = field.argmax(l);
+        if (am != a && am != b) continue;
+        const Vec3 q = vol.localToCanonical(l);
+        const double dist = std::sqrt((q[0] - c[0]) * (q[0] - c[0]) + (q[1] - c[1]) * (q[1] - c[1]) +
+                                      (q[2] - c[2]) * (q[2] - c[2]));
+        if (dist > 2 * smin) continue;  // not the interface next to this voxel
+        cand[n] = {1.0 / (1.0 + dist), q, 0.25 * smin};  // nearest surface points first
+      }
+    }, chunks);
+    ctx.checkCancel();
+    const size_t nWrong = size_t(std::count(wrong.begin(), wrong.end(), 1));
+    cand.erase(std::remove_if(cand.begin(), cand.end(),
+                              [](const Candidate& c) { return c.deviation == 0; }),
+               cand.end());
+    std::sort(cand.begin(), cand.end(), [](const Candidate& x, const Candidate& y) {
+      if (x.deviation != y.deviation) return x.deviation > y.deviation;
+      return x.point < y.point;
+    });
+    const auto fresh = insertCandidates(dt, cand, smin);
+    ctx.debug("Voxel-centre refinement round " + std::to_string(round) + ": " +
+              std::to_string(voxels.size()) + " of " + std::to_string(allVoxels) +
+              " boundary voxels checked, " + std::to_string(nWrong) +
+              " centres in a tet of another label, " + std::to_string(fresh.size()) +
+              " points inserted (" + std::to_string(secondsSince(t0)) + " s)");
+    inserted += fresh.size();
+    relabelAround(field, dt, fresh, threads);
+    // Stop when almost nothing could be inserted (the rest are centres whose surface point is
+    // closer than a quarter voxel to a vertex already there).
+    if (fresh.size() * 50 < nWrong || fresh.empty()) break;
+    // Next round: the centres still wrong and those near a new point (only the cells around
+    // new points changed label; a cell's circumsphere holds no other vertex, so a changed cell
+    // lies within a few voxels of its new vertex at the sampling densities used here).
+    std::fill(mark.begin(), mark.end(), 0);
+    for (auto v : fresh) {
+      const Vec3 l = vol.canonicalToLocal({v->point().x(), v->point().y(), v->point().z()});
+      const int r = 3;
+      for (int z = int(std::floor(l[2])) - r; z <= int(std::ceil(l[2])) + r; ++z)
+        for (int y = int(std::floor(l[1])) - r; y <= int(std::ceil(l[1])) + r; ++y)
+          for (int x = int(std::floor(l[0])) - r; x <= int(std::ceil(l[0])) + r; ++x)
+            if (x >= 0 && y >= 0 && z >= 0 && x < d[0] && y < d[1] && z < d[2])
+              mark[vol.index(x, y, z)] = 1;
+    }
+    std::vector<std::array<int, 3>> next;
+    for (size_t n = 0; n < voxels.size(); ++n)
+      if (wrong[n] || mark[vol.index(voxels[n][0], voxels[n][1], voxels[n][2])])
+        next.push_back(voxels[n]);
+    voxels.swap(next);
+  }
+  return inserted;
 }
 
 }  // namespace
 
 BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector<Vec3>& points,
-                                  const SurfaceSamples& samples, RunContext& ctx) {
+                                  const SurfaceSamples& samples, RunContext& ctx,
+                                  double facetDistance) {
   const PreprocessedVolume& vol = field.volume();
   auto ld = std::make_shared<LabelledDelaunay>();
   ld->impl = std::make_unique<LabelledDelaunay::Impl>();
@@ -151,10 +514,15 @@ BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector
   dt.insert(pts.begin(), pts.end());
   ctx.progress(0.4);
   labelAll(field, dt, ctx);
+  ctx.progress(0.5);
+  BoundarySurface out;
+  if (facetDistance > 0) {
+    out.refinementPoints = refineFacetDistance(field, dt, facetDistance, ctx);
+    out.voxelCentrePoints = refineVoxelCentres(field, dt, ctx);
+  }
   ctx.progress(0.6);
 
   // Repair: labels that no tet carries.
-  BoundarySurface out;
   for (int round = 0; round < 3; ++round) {
     const auto counts = ld->tetsPerLabel();
     std::vector<int> missing;

@@ -8,6 +8,10 @@
 /// watertight, conformal multi-material surface that cannot self-intersect (all triangles are
 /// faces of one triangulation): the restricted Delaunay surface of the samples.
 ///
+/// Refinement (facet_distance > 0): interface triangles whose centroid is farther than the bound
+/// from the interface get the interface point on their normal inserted (CGAL's facet_distance
+/// criterion), so thin and strongly curved parts follow the labels.
+///
 /// Repair: a kept label that no tet carries (too small for the sampling) gets all its dense
 /// interface samples and voxel centres inserted, and the labelling is redone (up to 3 rounds);
 /// if it still has no tet, the tets containing its voxel centres take its label (reported).
@@ -51,11 +55,17 @@ struct BoundarySurface {
   size_t delaunayVertices = 0, delaunayTets = 0;
   std::vector<int> repairedLabels;  ///< compact labels that needed extra points
   std::vector<int> forcedLabels;    ///< compact labels given to the tets holding their voxels
+  size_t refinementPoints = 0;      ///< points inserted by the facet-distance refinement
+  size_t voxelCentrePoints = 0;     ///< points inserted so voxel centres fall in their label
 };
 
 /// `points`: the particles (local voxel index positions). `dense`: every interface vertex, used
-/// to repair labels that the particles miss.
+/// to repair labels that the particles miss. `facetDistance` (mm, 0 = off): refine the surface
+/// until every interface triangle's centroid is within this distance of the interface f_a = f_b
+/// (points inserted on the interface, farthest first, never closer than half the triangle's
+/// shortest edge to another vertex; at most 10 rounds).
 BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector<Vec3>& points,
-                                  const SurfaceSamples& dense, RunContext& ctx);
+                                  const SurfaceSamples& dense, RunContext& ctx,
+                                  double facetDistance = 0);
 
 }  // namespace femesher

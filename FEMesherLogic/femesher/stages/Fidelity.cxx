@@ -113,6 +113,102 @@ void checkCancel(RunContext* ctx) {
   if (ctx) ctx->checkCancel();
 }
 
+/// Value of the tet containing each voxel centre (`background` where none), see the file comment.
+std::vector<uint16_t> rasterize(const LabelVolume& labels, const TetMesh& mesh,
+                                const std::vector<uint16_t>& tetValue, uint16_t background,
+                                int threads, RunContext* ctx) {
+  const auto& dims = labels.dims;
+  // --- Rasterise the mesh onto the voxel centres ------------------------------------------------
+  std::vector<Vec3> idx(mesh.points.size());
+  parallelFor(idx.size(), threads, [&](size_t b, size_t e, int) {
+    for (size_t i = b; i < e; ++i) idx[i] = labels.physicalToIndex(mesh.points[i]);
+  });
+  const size_t nt = mesh.tets.size();
+  std::vector<std::array<int, 2>> zRange(nt);  // voxel z range of each tet (empty when lo > hi)
+  parallelFor(nt, threads, [&](size_t b, size_t e, int) {
+    for (size_t t = b; t < e; ++t) {
+      const auto& T = mesh.tets[t];
+      const double mn = std::min({idx[T[0]][2], idx[T[1]][2], idx[T[2]][2], idx[T[3]][2]});
+      const double mx = std::max({idx[T[0]][2], idx[T[1]][2], idx[T[2]][2], idx[T[3]][2]});
+      zRange[t] = {int(std::max(-1.0, std::ceil(mn - 1e-6))),
+                   int(std::min(double(dims[2]), std::floor(mx + 1e-6)))};
+    }
+  });
+  std::vector<uint16_t> meshLabel(labels.voxelCount(), background);
+  // Outward normal lexicographically positive (see the file comment).
+  auto lexPositive = [](const double* n) {
+    const double s = std::max({std::fabs(n[0]), std::fabs(n[1]), std::fabs(n[2])}) * 1e-9;
+    for (int k = 0; k < 3; ++k) {
+      if (n[k] > s) return true;
+      if (n[k] < -s) return false;
+    }
+    return false;
+  };
+  const int slabs = std::min(dims[2], threads * 8);
+  parallelFor(size_t(slabs), threads, [&](size_t s0, size_t s1, int) {
+    for (size_t s = s0; s < s1; ++s) {
+      const int zs = int(size_t(dims[2]) * s / size_t(slabs));
+      const int ze = int(size_t(dims[2]) * (s + 1) / size_t(slabs)) - 1;
+      for (size_t t = 0; t < nt; ++t) {
+        if ((t & 0xFFFF) == 0 && ctx && ctx->isCanceled()) return;
+        const int lo2 = std::max(zs, zRange[t][0]), hi2 = std::min(ze, zRange[t][1]);
+        if (lo2 > hi2) continue;
+        const auto& T = mesh.tets[t];
+        const Vec3 &a = idx[T[0]], &b = idx[T[1]], &c = idx[T[2]], &d = idx[T[3]];
+        int lo[2], hi[2];
+        for (int k = 0; k < 2; ++k) {
+          const double mn = std::min({a[k], b[k], c[k], d[k]}), mx = std::max({a[k], b[k], c[k], d[k]});
+          lo[k] = std::max(0, int(std::max(-1.0, std::ceil(mn - 1e-6))));
+          hi[k] = std::min(dims[k] - 1, int(std::min(double(dims[k]), std::floor(mx + 1e-6))));
+        }
+        if (lo[0] > hi[0] || lo[1] > hi[1]) continue;
+        const double m[9] = {b[0] - a[0], c[0] - a[0], d[0] - a[0], b[1] - a[1], c[1] - a[1],
+                             d[1] - a[1], b[2] - a[2], c[2] - a[2], d[2] - a[2]};
+        const double det = m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6]) +
+                           m[2] * (m[3] * m[7] - m[4] * m[6]);
+        const double scale = std::fabs(m[0]) + std::fabs(m[4]) + std::fabs(m[8]) + std::fabs(m[1]) +
+                             std::fabs(m[2]) + std::fabs(m[3]) + std::fabs(m[5]) + std::fabs(m[6]) +
+                             std::fabs(m[7]);
+        if (!(std::fabs(det) > 1e-14 * scale * scale * scale)) continue;  // flat tet: no interior
+        // Rows of the inverse = gradients of λ1..λ3; λ0 = 1 - λ1 - λ2 - λ3.
+        const double g[4][3] = {
+            {0, 0, 0},
+            {(m[4] * m[8] - m[5] * m[7]) / det, (m[2] * m[7] - m[1] * m[8]) / det,
+             (m[1] * m[5] - m[2] * m[4]) / det},
+            {(m[5] * m[6] - m[3] * m[8]) / det, (m[0] * m[8] - m[2] * m[6]) / det,
+             (m[2] * m[3] - m[0] * m[5]) / det},
+            {(m[3] * m[7] - m[4] * m[6]) / det, (m[1] * m[6] - m[0] * m[7]) / det,
+             (m[0] * m[4] - m[1] * m[3]) / det}};
+        bool keepOnFace[4];
+        for (int f = 1; f < 4; ++f) {
+          const double n[3] = {-g[f][0], -g[f][1], -g[f][2]};
+          keepOnFace[f] = lexPositive(n);
+        }
+        {
+          const double n[3] = {g[1][0] + g[2][0] + g[3][0], g[1][1] + g[2][1] + g[3][1],
+                               g[1][2] + g[2][2] + g[3][2]};
+          keepOnFace[0] = lexPositive(n);
+        }
+        auto ok = [&](double l, int f) { return l > kBaryTol || (l >= -kBaryTol && keepOnFace[f]); };
+        const uint16_t lab = tetValue[t];
+        for (int z = lo2; z <= hi2; ++z)
+          for (int y = lo[1]; y <= hi[1]; ++y) {
+            const double py = y - a[1], pz = z - a[2];
+            const double u0 = g[1][1] * py + g[1][2] * pz, v0 = g[2][1] * py + g[2][2] * pz,
+                         w0 = g[3][1] * py + g[3][2] * pz;
+            size_t vi = labels.index(lo[0], y, z);
+            for (int x = lo[0]; x <= hi[0]; ++x, ++vi) {
+              const double px = x - a[0];
+              const double u = u0 + g[1][0] * px, v = v0 + g[2][0] * px, w = w0 + g[3][0] * px;
+              if (ok(u, 1) && ok(v, 2) && ok(w, 3) && ok(1.0 - u - v - w, 0)) meshLabel[vi] = lab;
+            }
+          }
+      }
+    }
+  });
+  return meshLabel;
+}
+
 }  // namespace
 
 FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh, RunContext* ctx) {
@@ -173,96 +269,10 @@ FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh, R
   const uint16_t bg = index(0);  // "no tet" counts as background
   if (ctx) ctx->progress(0.05);
 
-  // --- Rasterise the mesh onto the voxel centres ------------------------------------------------
-  std::vector<Vec3> idx(mesh.points.size());
-  parallelFor(idx.size(), threads, [&](size_t b, size_t e, int) {
-    for (size_t i = b; i < e; ++i) idx[i] = labels.physicalToIndex(mesh.points[i]);
-  });
   const size_t nt = mesh.tets.size();
-  std::vector<std::array<int, 2>> zRange(nt);  // voxel z range of each tet (empty when lo > hi)
-  parallelFor(nt, threads, [&](size_t b, size_t e, int) {
-    for (size_t t = b; t < e; ++t) {
-      const auto& T = mesh.tets[t];
-      const double mn = std::min({idx[T[0]][2], idx[T[1]][2], idx[T[2]][2], idx[T[3]][2]});
-      const double mx = std::max({idx[T[0]][2], idx[T[1]][2], idx[T[2]][2], idx[T[3]][2]});
-      zRange[t] = {int(std::max(-1.0, std::ceil(mn - 1e-6))),
-                   int(std::min(double(dims[2]), std::floor(mx + 1e-6)))};
-    }
-  });
-  std::vector<uint16_t> meshLabel(nv, bg);
   std::vector<uint16_t> tetIndex(nt);
   for (size_t t = 0; t < nt; ++t) tetIndex[t] = index(mesh.tetLabels[t]);
-  // Outward normal lexicographically positive (see the file comment).
-  auto lexPositive = [](const double* n) {
-    const double s = std::max({std::fabs(n[0]), std::fabs(n[1]), std::fabs(n[2])}) * 1e-9;
-    for (int k = 0; k < 3; ++k) {
-      if (n[k] > s) return true;
-      if (n[k] < -s) return false;
-    }
-    return false;
-  };
-  const int slabs = std::min(dims[2], threads * 8);
-  parallelFor(size_t(slabs), threads, [&](size_t s0, size_t s1, int) {
-    for (size_t s = s0; s < s1; ++s) {
-      const int zs = int(size_t(dims[2]) * s / size_t(slabs));
-      const int ze = int(size_t(dims[2]) * (s + 1) / size_t(slabs)) - 1;
-      for (size_t t = 0; t < nt; ++t) {
-        if ((t & 0xFFFF) == 0 && canceled()) return;
-        const int lo2 = std::max(zs, zRange[t][0]), hi2 = std::min(ze, zRange[t][1]);
-        if (lo2 > hi2) continue;
-        const auto& T = mesh.tets[t];
-        const Vec3 &a = idx[T[0]], &b = idx[T[1]], &c = idx[T[2]], &d = idx[T[3]];
-        int lo[2], hi[2];
-        for (int k = 0; k < 2; ++k) {
-          const double mn = std::min({a[k], b[k], c[k], d[k]}), mx = std::max({a[k], b[k], c[k], d[k]});
-          lo[k] = std::max(0, int(std::max(-1.0, std::ceil(mn - 1e-6))));
-          hi[k] = std::min(dims[k] - 1, int(std::min(double(dims[k]), std::floor(mx + 1e-6))));
-        }
-        if (lo[0] > hi[0] || lo[1] > hi[1]) continue;
-        const double m[9] = {b[0] - a[0], c[0] - a[0], d[0] - a[0], b[1] - a[1], c[1] - a[1],
-                             d[1] - a[1], b[2] - a[2], c[2] - a[2], d[2] - a[2]};
-        const double det = m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6]) +
-                           m[2] * (m[3] * m[7] - m[4] * m[6]);
-        const double scale = std::fabs(m[0]) + std::fabs(m[4]) + std::fabs(m[8]) + std::fabs(m[1]) +
-                             std::fabs(m[2]) + std::fabs(m[3]) + std::fabs(m[5]) + std::fabs(m[6]) +
-                             std::fabs(m[7]);
-        if (!(std::fabs(det) > 1e-14 * scale * scale * scale)) continue;  // flat tet: no interior
-        // Rows of the inverse = gradients of λ1..λ3; λ0 = 1 - λ1 - λ2 - λ3.
-        const double g[4][3] = {
-            {0, 0, 0},
-            {(m[4] * m[8] - m[5] * m[7]) / det, (m[2] * m[7] - m[1] * m[8]) / det,
-             (m[1] * m[5] - m[2] * m[4]) / det},
-            {(m[5] * m[6] - m[3] * m[8]) / det, (m[0] * m[8] - m[2] * m[6]) / det,
-             (m[2] * m[3] - m[0] * m[5]) / det},
-            {(m[3] * m[7] - m[4] * m[6]) / det, (m[1] * m[6] - m[0] * m[7]) / det,
-             (m[0] * m[4] - m[1] * m[3]) / det}};
-        bool keepOnFace[4];
-        for (int f = 1; f < 4; ++f) {
-          const double n[3] = {-g[f][0], -g[f][1], -g[f][2]};
-          keepOnFace[f] = lexPositive(n);
-        }
-        {
-          const double n[3] = {g[1][0] + g[2][0] + g[3][0], g[1][1] + g[2][1] + g[3][1],
-                               g[1][2] + g[2][2] + g[3][2]};
-          keepOnFace[0] = lexPositive(n);
-        }
-        auto ok = [&](double l, int f) { return l > kBaryTol || (l >= -kBaryTol && keepOnFace[f]); };
-        const uint16_t lab = tetIndex[t];
-        for (int z = lo2; z <= hi2; ++z)
-          for (int y = lo[1]; y <= hi[1]; ++y) {
-            const double py = y - a[1], pz = z - a[2];
-            const double u0 = g[1][1] * py + g[1][2] * pz, v0 = g[2][1] * py + g[2][2] * pz,
-                         w0 = g[3][1] * py + g[3][2] * pz;
-            size_t vi = labels.index(lo[0], y, z);
-            for (int x = lo[0]; x <= hi[0]; ++x, ++vi) {
-              const double px = x - a[0];
-              const double u = u0 + g[1][0] * px, v = v0 + g[2][0] * px, w = w0 + g[3][0] * px;
-              if (ok(u, 1) && ok(v, 2) && ok(w, 3) && ok(1.0 - u - v - w, 0)) meshLabel[vi] = lab;
-            }
-          }
-      }
-    }
-  });
+  std::vector<uint16_t> meshLabel = rasterize(labels, mesh, tetIndex, bg, threads, ctx);
   checkCancel(ctx);
   if (ctx) ctx->progress(0.35);
 
@@ -369,8 +379,10 @@ FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh, R
   }
   // Canonical frame (mm) of the mesh points.
   std::vector<Vec3> can(mesh.points.size());
-  for (size_t i = 0; i < can.size(); ++i)
-    can[i] = {idx[i][0] * sp[0], idx[i][1] * sp[1], idx[i][2] * sp[2]};
+  for (size_t i = 0; i < can.size(); ++i) {
+    const Vec3 ix = labels.physicalToIndex(mesh.points[i]);
+    can[i] = {ix[0] * sp[0], ix[1] * sp[1], ix[2] * sp[2]};
+  }
 
   // Face geometry: centre (canonical) of face bit `b` of voxel (x, y, z).
   auto faceCentre = [&](int x, int y, int z, int bit) {
@@ -557,6 +569,34 @@ FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh, R
   }
   if (ctx) ctx->progress(1.0);
   return rep;
+}
+
+LabelVolume rasterizeMesh(const LabelVolume& grid, const TetMesh& mesh, RunContext* ctx) {
+  if (mesh.tetLabels.size() != mesh.tets.size())
+    throw Error(ErrorCode::InvalidArgument, "rasterizeMesh: the mesh has " +
+                                                std::to_string(mesh.tets.size()) + " tets but " +
+                                                std::to_string(mesh.tetLabels.size()) + " tet labels");
+  std::vector<int32_t> ids(mesh.tetLabels.begin(), mesh.tetLabels.end());
+  ids.push_back(0);
+  std::sort(ids.begin(), ids.end());
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  if (ids.size() > 65535)
+    throw Error(ErrorCode::TooManyLabels, "rasterizeMesh: more than 65,535 distinct tet labels");
+  const LabelIndex index(ids);
+  std::vector<uint16_t> tetIndex(mesh.tets.size());
+  for (size_t t = 0; t < tetIndex.size(); ++t) tetIndex[t] = index(mesh.tetLabels[t]);
+  const std::vector<uint16_t> raster =
+      rasterize(grid, mesh, tetIndex, index(0), resolveThreads(ctx ? ctx->threads() : 0), ctx);
+  checkCancel(ctx);
+  LabelVolume out;
+  out.dims = grid.dims;
+  out.spacing = grid.spacing;
+  out.origin = grid.origin;
+  out.direction = grid.direction;
+  out.materials = mesh.materials;
+  out.labels.resize(raster.size());
+  for (size_t i = 0; i < raster.size(); ++i) out.labels[i] = index.label(raster[i]);
+  return out;
 }
 
 std::string fidelityReportToJson(const FidelityReport& r) {

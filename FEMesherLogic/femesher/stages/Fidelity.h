@@ -50,6 +50,11 @@ struct FidelityReport {
 FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh,
                                RunContext* ctx = nullptr);
 
+/// The mesh sampled on the voxel centres of `grid` (same geometry): each voxel gets the label of
+/// the tet containing its centre, 0 where no tet does (the rule Dice uses). Write it next to the
+/// input to see where mesh and labels disagree (`femesher quality MESH --labels IN --raster OUT`).
+LabelVolume rasterizeMesh(const LabelVolume& grid, const TetMesh& mesh, RunContext* ctx = nullptr);
+
 std::string fidelityReportToJson(const FidelityReport& report);
 std::string fidelityReportToText(const FidelityReport& report);
 

@@ -215,8 +215,9 @@ IndicatorField computeIndicatorFunctions(const PreprocessedVolume& vol,
   field.far_ = -bandMm;
   const float offset = float(0.5 * smin);
   // Every voxel centre keeps |f| >= eps with the right sign: the smoothed surface never comes
-  // closer than about a fifth of a voxel to a centre, so one-voxel features keep a volume.
-  const float eps = float(0.2 * smin);
+  // closer than about a third of a voxel to a centre, so one-voxel features keep a volume and
+  // the piecewise-linear surface has room to stay on the right side of every centre.
+  const float eps = float(0.35 * smin);
   const int threads = ctx.threads();
 
   // Bounding boxes of every label.

@@ -38,6 +38,13 @@ double kernelSecondDerivative(double r, double s) {
 
 double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
+/// Median of `v` (`fallback` when empty): the neighbour grids use it as their cell size.
+double median(std::vector<double> v, double fallback) {
+  if (v.empty()) return fallback;
+  std::nth_element(v.begin(), v.begin() + long(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
 struct Surface {
   const IndicatorField& f;
   const PreprocessedVolume& vol;
@@ -238,8 +245,10 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
       hMax = std::max(hMax, h[i]);
       nrm[i] = P[i].junction < 0 ? S.normal(P[i].a, P[i].b, P[i].local) : Vec3{0, 0, 0};
     }
+    // Cells of the median interaction radius: with an adaptive field hMax can be many times the
+    // typical h, and cells that large would hold hundreds of particles each.
     Grid grid;
-    grid.cell = k * hMax;
+    grid.cell = k * median(h, hMax);
     grid.build(pos);
 
     auto neighbours = [&](size_t i, std::vector<std::pair<uint32_t, double>>& out) {
@@ -481,18 +490,20 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
   {
     const size_t n = P.size();
     std::vector<Vec3> pos(n);
+    std::vector<double> hs(n);
     double hMax = S.smin;
     for (size_t i = 0; i < n; ++i) {
       pos[i] = S.canonical(P[i].local);
-      hMax = std::max(hMax, sizing(pos[i]));
+      hs[i] = sizing(pos[i]);
+      hMax = std::max(hMax, hs[i]);
     }
     Grid grid;
-    grid.cell = 2 * hMax;
+    grid.cell = 2 * median(hs, hMax);
     grid.build(pos);
     double sum = 0;
     size_t count = 0;
     for (size_t i = nFixed; i < n; ++i) {
-      const double h = sizing(pos[i]);
+      const double h = hs[i];
       double best = 1e300;
       grid.forEachNear(pos[i], 2 * h, [&](uint32_t j) {
         if (j == i || P[j].junction >= 0 || P[j].a != P[i].a || P[j].b != P[i].b) return;

@@ -111,7 +111,10 @@ int limitGradation(const Grid3& grid, std::vector<float>& h, double L, RunContex
   int sweeps = 0;
   for (;;) {
     bool changed = false;
-    // sign = +1: forward sweep, neighbours at -offset (preceding); -1: backward, at +offset.
+    // sign = +1: forward sweep in raster order, reading the preceding neighbours (offset < 0,
+    // already final in this sweep); -1: backward sweep, reading the following ones. Two sweeps
+    // give the chamfer envelope (every neighbour path reorders into forward moves then backward
+    // moves); the loop repeats only to confirm it (or to finish paths bent by the grid border).
     for (int sign : {1, -1}) {
       ++sweeps;
       for (int kk = 0; kk < nz; ++kk) {
@@ -125,10 +128,10 @@ int limitGradation(const Grid3& grid, std::vector<float>& h, double L, RunContex
             double hv = h[v];
             bool lowered = false;
             for (size_t n = 0; n < nbs.size(); ++n) {
-              const int ni = i - sign * nbs[n].di, nj = j - sign * nbs[n].dj,
-                        nk = k - sign * nbs[n].dk;
+              const int ni = i + sign * nbs[n].di, nj = j + sign * nbs[n].dj,
+                        nk = k + sign * nbs[n].dk;
               if (ni < 0 || nj < 0 || nk < 0 || ni >= nx || nj >= ny || nk >= nz) continue;
-              const double cand = double(h[v - sign * offset[n]]) + step[n];
+              const double cand = double(h[v + sign * offset[n]]) + step[n];
               if (cand < hv) {
                 hv = cand;
                 lowered = true;

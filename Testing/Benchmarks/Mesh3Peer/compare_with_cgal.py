@@ -5,9 +5,10 @@
   compare_with_cgal.py [--build build] [--threads 2] [--markdown out.md] [IN ...]
   (no IN: the built-in phantom)
 
-Fair settings: CGAL gets FEMesher's surface element size (counts.target_edge_length_mm) as
-facet_size and edge_size, twice that as cell_size, and facet_distance = half the smallest voxel
-spacing (FEMesher's surfaces stay within half a voxel of the labels by construction). Both are
+Fair settings: both aim at the same boundary distance. CGAL gets FEMesher's facet_distance (its
+surface refinement bound, parameters.facet_distance voxels of the smallest spacing) as
+facet_distance, FEMesher's surface element size (counts.target_edge_length_mm) as facet_size and
+edge_size, and twice that as cell_size. Both are
 judged by the same quality and fidelity code (FEMesherLogic). Timings are wall seconds on this
 machine: never asserted anywhere, only printed."""
 import argparse
@@ -58,10 +59,11 @@ for path in inputs:
     fem_mesh_s = sum(s["seconds"] for s in r["stages"] if s["name"] not in ("Quality", "Fidelity"))
     h = r["counts"]["target_edge_length_mm"]
     sp = min(r["input"]["spacing"])
+    fd = float(r["parameters"].get("facet_distance", 0.5)) or 0.5
     t = time.time()
     out = subprocess.run([peer, path, "-o", os.path.join(tmp, name + ".cgal.vtu"), "--threads", str(args.threads),
                           "--facet-size", str(h), "--edge-size", str(h), "--cell-size", str(2 * h),
-                          "--facet-distance", str(0.5 * sp)], check=True, capture_output=True, text=True)
+                          "--facet-distance", str(fd * sp)], check=True, capture_output=True, text=True)
     cgal_wall = time.time() - t
     c = json.loads(out.stdout)
     fs, cs = summary(r["quality"], r["fidelity"]), summary(c["quality"], c["fidelity"])
