@@ -126,6 +126,22 @@ check(len(prog) >= 5 and all(0 <= p <= 1 for p in prog), "filter-progress lines 
 check(all(b >= a - 1e-9 for a, b in zip(prog, prog[1:])), "filter-progress is monotone")
 check("<filter-start>" in r.stdout and "<filter-end>" in r.stdout, "filter-start/end present")
 
+# --- quality with the labels: fidelity and the rasterised mesh ---------------------------------
+raster = os.path.join(TMP, "raster.nrrd")
+r = run("quality", out_vtu, "--labels", small, "--raster", raster, "--json")
+check(r.returncode == 0 and os.path.exists(raster), "quality --labels --raster writes the rasterised mesh")
+if r.returncode == 0:
+    dice = {m["label"]: m["dice"] for m in json.loads(r.stdout)["fidelity"]["materials"]}
+    check(set(dice) == {1, 2} and min(dice.values()) > 0.9, "quality --json reports Dice per label: %s" % dice)
+    ri = run("info", raster, "--json")
+    counts_in = {l["id"]: l["voxels"] for l in json.loads(run("info", small, "--json").stdout)["labels"]}
+    counts_r = {l["id"]: l["voxels"] for l in json.loads(ri.stdout)["labels"]} if ri.returncode == 0 else {}
+    check(set(counts_r) == set(counts_in) and all(abs(counts_r[k] - counts_in[k]) <= 0.1 * counts_in[k] for k in counts_in),
+          "the raster has the input's labels on its grid, voxel counts within 10%%: %s vs %s" % (counts_r, counts_in))
+r = run("quality", out_vtu, "--raster", os.path.join(TMP, "raster2.nrrd"))
+check(r.returncode == EXIT["invalid-argument"] and "--labels" in r.stderr
+      and not os.path.exists(os.path.join(TMP, "raster2.nrrd")), "--raster without --labels is a clear error")
+
 # --- mesh with a report -------------------------------------------------------------------------
 report = os.path.join(TMP, "report.json")
 out_inp = os.path.join(TMP, "ball.inp")

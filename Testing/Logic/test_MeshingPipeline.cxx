@@ -3,12 +3,14 @@
 #include "MeshInvariants.h"
 
 #include <femesher/Pipeline.h>
+#include <femesher/stages/Fidelity.h>
 #include <femesher/stages/IndicatorFunctions.h>
 #include <femesher/stages/LabelPreprocess.h>
 
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <thread>
 
@@ -222,4 +224,91 @@ TEST(MeshingPipeline, ProgressIsMonotone) {
   ASSERT_GT(totals.size(), 5u);
   for (size_t i = 1; i < totals.size(); ++i) EXPECT_GE(totals[i], totals[i - 1] - 1e-12);
   EXPECT_NEAR(totals.back(), 1.0, 1e-9);
+}
+
+namespace {
+
+/// A ball (1) cut by a one-voxel plate (2), with a thin oblique rod (3) through it: thin,
+/// staircased features where a coarse piecewise-linear surface misses voxel centres.
+LabelVolume thinFeatures(int n = 36) {
+  LabelVolume v;
+  v.dims = {n, n, n};
+  v.spacing = {1.0, 1.0, 1.5};
+  v.labels.assign(size_t(n) * n * n, 0);
+  const double c = (n - 1) / 2.0;
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const double x = i - c, y = j - c, z = k - c;
+        int l = 0;
+        if (x * x + y * y + z * z < 0.42 * 0.42 * n * n) l = 1;
+        if (l == 1 && i == int(c) + 2) l = 2;
+        // Rod along (1, 1, 0.5): distance from the axis below 1.2 voxels.
+        const double t = (x + y + 0.5 * z) / 1.5;
+        const double dx = x - t * (1 / 1.5), dy = y - t * (1 / 1.5), dz = z - t * (0.5 / 1.5);
+        if (dx * dx + dy * dy + dz * dz < 1.44 && std::fabs(t) < 0.4 * n) l = 3;
+        v.labels[v.index(i, j, k)] = l;
+      }
+  return v;
+}
+
+/// Voxel centres next to another label that fall in a tet of another label (or in none).
+size_t misplacedBoundaryCentres(const LabelVolume& v, const TetMesh& m) {
+  const LabelVolume raster = rasterizeMesh(v, m);
+  size_t wrong = 0;
+  for (int k = 0; k < v.dims[2]; ++k)
+    for (int j = 0; j < v.dims[1]; ++j)
+      for (int i = 0; i < v.dims[0]; ++i) {
+        const int32_t l = v.at(i, j, k);
+        bool boundary = false;
+        for (int a = 0; a < 3 && !boundary; ++a)
+          for (int s : {-1, 1}) {
+            int q[3] = {i, j, k};
+            q[a] += s;
+            if (v.inside(q[0], q[1], q[2]) && v.at(q[0], q[1], q[2]) != l) boundary = true;
+          }
+        if (boundary && raster.at(i, j, k) != l) ++wrong;
+      }
+  return wrong;
+}
+
+}  // namespace
+
+TEST(MeshingPipeline, SurfaceRefinementPutsVoxelCentresInTheirLabel) {
+  const LabelVolume v = thinFeatures();
+  MeshingParameters off;
+  off.facetDistance = 0;  // no refinement: the particles' restricted Delaunay surface only
+  MeshingParameters on;   // defaults: facet distance + voxel-centre refinement
+  RunContext c1, c2;
+  auto a = runPipeline(v, off, c1);
+  auto b = runPipeline(v, on, c2);
+  ASSERT_TRUE(a.isOk()) << a.status().message();
+  ASSERT_TRUE(b.isOk()) << b.status().message();
+  expectConformal(b->mesh);
+  for (size_t t = 0; t < b->mesh.tets.size(); ++t) ASSERT_GT(b->mesh.tetVolume(t), 0.0) << t;
+  const size_t wrongOff = misplacedBoundaryCentres(v, a->mesh);
+  const size_t wrongOn = misplacedBoundaryCentres(v, b->mesh);
+  size_t boundaryVoxels = 0;
+  {
+    const LabelVolume same = v;
+    TetMesh none;
+    boundaryVoxels = misplacedBoundaryCentres(same, none);  // every boundary centre is "wrong"
+  }
+  ASSERT_GT(boundaryVoxels, 1000u);
+  std::printf("boundary centres %zu, misplaced without refinement %zu, with %zu\n", boundaryVoxels,
+              wrongOff, wrongOn);
+  EXPECT_GT(wrongOff, 0u) << "the unrefined surface should miss some centres of this shape";
+  EXPECT_LT(wrongOn * 4, wrongOff) << "refinement should fix most misplaced centres";
+  EXPECT_LE(double(wrongOn), 0.01 * double(boundaryVoxels));
+  for (const auto& mf : b->fidelity.materials) EXPECT_GE(mf.dice, 0.97) << "label " << mf.label;
+  EXPECT_NE(b->reportJson.find("\"voxel_centre_refinement_points\""), std::string::npos);
+  auto count = [](const PipelineResult& r, const std::string& key) {
+    for (const auto& [k, x] : r.counts)
+      if (k == key) return x;
+    ADD_FAILURE() << "no count " << key;
+    return -1.0;
+  };
+  EXPECT_GT(count(b.value(), "voxel_centre_refinement_points") + count(b.value(), "surface_refinement_points"), 0);
+  EXPECT_EQ(count(a.value(), "voxel_centre_refinement_points"), 0);
+  EXPECT_EQ(count(a.value(), "surface_refinement_points"), 0);
 }
