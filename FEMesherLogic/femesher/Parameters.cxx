@@ -97,6 +97,12 @@ const std::vector<Binding>& bindings() {
          "more closely, at more elements. 0 = no refinement.", true},
         [](MeshingParameters& p, double x) { p.facetDistance = x; },
         [](const MeshingParameters& p) { return p.facetDistance; });
+    add({"voxel_refinement", "bool", "", "", 0, 1, "Voxel-exact surfaces",
+         "Insert interface points until every voxel centre next to another label lies in a tet of "
+         "its own label (the mesh reproduces the label map at the voxel centres; Dice close to 1). "
+         "Off: fewer surface points, fidelity set by facet_distance alone.", true},
+        [](MeshingParameters& p, double x) { p.voxelRefinement = x != 0; },
+        [](const MeshingParameters& p) { return p.voxelRefinement ? 1.0 : 0.0; });
     add({"max_radius_edge_ratio", "double", "", "", 0, 10, "Quality bound (radius-edge)",
          "TetGen's bound on the circumradius / shortest edge of each tet (-q). 0 disables quality "
          "refinement. Values below about 1.2 may not terminate.", true},

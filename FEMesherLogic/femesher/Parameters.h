@@ -68,6 +68,9 @@ struct MeshingParameters {
   /// interface triangle's centroid lies within this distance of the implicit interface (what
   /// CGAL calls facet_distance). 0 = no refinement.
   double facetDistance = 0.5;
+  /// After the facet-distance refinement, insert interface points until every voxel centre next
+  /// to another label lies in a tet of its own label (Dice close to 1; more surface points).
+  bool voxelRefinement = true;
 
   // --- Volume meshing (TetGen) ------------------------------------------------------------------
   /// TetGen quality bound: maximum radius-edge ratio (-q). 0 disables quality refinement.

@@ -256,7 +256,8 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
     {
       StageScope st(ctx, result.timings, "BoundaryMesh");
       const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
-      surface = buildBoundaryMesh(*field, particles, samples, ctx, params.facetDistance * smin);
+      surface = buildBoundaryMesh(*field, particles, samples, ctx, params.facetDistance * smin,
+                                  &junctions, params.voxelRefinement);
       junctionShare = junctionsOnTripleEdges(surface, vol, particles, junctions.particles.size(), ctx);
       if (useLdt) {
         // The particles as the system left them (junction particles carry their label sets).
@@ -391,6 +392,7 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
                                                                   surface.trianglePairs))},
                      {"surface_refinement_points", double(surface.refinementPoints)},
                      {"voxel_centre_refinement_points", double(surface.voxelCentrePoints)},
+                     {"junction_refinement_points", double(surface.junctionPoints)},
                      {"ldt_open_edges", double(ldt.openEdgesAfter)},
                      {"ldt_open_edges_before_filling", double(ldt.openEdgesBefore)},
                      {"ldt_holes_filled", double(ldt.holesFilled)},

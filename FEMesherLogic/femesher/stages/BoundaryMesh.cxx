@@ -479,11 +479,124 @@ size_t refineVoxelCentres(const IndicatorField& field, Delaunay& dt, RunContext&
   return inserted;
 }
 
+/// Junction refinement: a junction particle (triple line) must be a vertex of an edge around
+/// which three or more materials meet, i.e. the line must appear as mesh edges. For a junction
+/// particle where it does not, the line is sampled more densely there: the located line point
+/// (`Junctions::candidates`, same label triple) nearest to the midpoint between the particle and
+/// its nearest neighbour on the same line is inserted, if it is at least a fifth of their
+/// distance from both. Up to kRefineRounds rounds. `jv[j]` is junction particle j's vertex.
+size_t refineJunctionEdges(const IndicatorField& field, Delaunay& dt, const Junctions& junctions,
+                           const std::vector<Delaunay::Vertex_handle>& jv, RunContext& ctx,
+                           size_t& stillOff) {
+  const PreprocessedVolume& vol = field.volume();
+  const int threads = resolveThreads(ctx.threads());
+  auto keyOf = [](const JunctionPoint& p) {
+    uint64_t k = p.count;
+    for (int i = 0; i < p.count; ++i) k = (k << 16) | p.labels[size_t(i)];
+    return k;
+  };
+  // Located line points and junction particles, grouped by label set.
+  std::unordered_map<uint64_t, std::vector<Vec3>> linePoints;
+  for (const auto& c : junctions.candidates)
+    if (c.count == 3) linePoints[keyOf(c)].push_back(vol.localToCanonical(c.local));
+  std::unordered_map<uint64_t, std::vector<uint32_t>> members;
+  for (size_t j = 0; j < jv.size(); ++j)
+    if (jv[j] != Delaunay::Vertex_handle() && junctions.particles[j].count == 3)
+      members[keyOf(junctions.particles[j])].push_back(uint32_t(j));
+  auto onTripleEdge = [&](Delaunay::Vertex_handle v) {
+    std::vector<Delaunay::Edge> edges;
+    dt.finite_incident_edges(v, std::back_inserter(edges));
+    for (const auto& e : edges) {
+      int labels[3], n = 0;
+      auto c = dt.incident_cells(e), done = c;
+      do {
+        const int l = dt.is_infinite(c) ? 0 : c->info();
+        bool seen = false;
+        for (int i = 0; i < n; ++i) seen |= labels[i] == l;
+        if (!seen) {
+          labels[n++] = l;
+          if (n == 3) return true;
+        }
+      } while (++c != done);
+    }
+    return false;
+  };
+  auto pointOf = [](Delaunay::Vertex_handle v) {
+    return Vec3{v->point().x(), v->point().y(), v->point().z()};
+  };
+  auto dist2 = [](const Vec3& a, const Vec3& b) {
+    return (a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]);
+  };
+  size_t inserted = 0;
+  stillOff = 0;
+  for (int round = 0; round < kRefineRounds; ++round) {
+    std::vector<uint32_t> off;
+    for (size_t j = 0; j < jv.size(); ++j)
+      if (jv[j] != Delaunay::Vertex_handle() && junctions.particles[j].count == 3 &&
+          !onTripleEdge(jv[j]))
+        off.push_back(uint32_t(j));
+    stillOff = off.size();
+    if (off.empty()) break;
+    std::vector<Candidate> cand(off.size(), Candidate{0, {0, 0, 0}, 0});
+    parallelFor(off.size(), threads, [&](size_t b, size_t e, int) {
+      for (size_t n = b; n < e; ++n) {
+        const uint32_t j = off[n];
+        const uint64_t key = keyOf(junctions.particles[j]);
+        const Vec3 p = pointOf(jv[j]);
+        // Nearest other particle of the same line.
+        double best = 1e300;
+        Vec3 q{0, 0, 0};
+        for (uint32_t k : members[key]) {
+          if (k == j) continue;
+          const double d2 = dist2(p, pointOf(jv[k]));
+          if (d2 < best) {
+            best = d2;
+            q = pointOf(jv[k]);
+          }
+        }
+        if (best >= 1e300) continue;
+        const double d = std::sqrt(best);
+        const Vec3 m{0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1]), 0.5 * (p[2] + q[2])};
+        double bestM = 0.25 * best;  // within half of d of the midpoint
+        const Vec3* pick = nullptr;
+        const auto it = linePoints.find(key);
+        if (it == linePoints.end()) continue;
+        for (const Vec3& c : it->second) {
+          const double dm = dist2(c, m);
+          if (dm >= bestM) continue;
+          if (dist2(c, p) < 0.04 * best || dist2(c, q) < 0.04 * best) continue;
+          bestM = dm;
+          pick = &c;
+        }
+        if (pick) cand[n] = {1.0 / (1.0 + d), *pick, 0.2 * d};
+      }
+    });
+    ctx.checkCancel();
+    cand.erase(std::remove_if(cand.begin(), cand.end(),
+                              [](const Candidate& c) { return c.deviation == 0; }),
+               cand.end());
+    std::sort(cand.begin(), cand.end(), [](const Candidate& x, const Candidate& y) {
+      if (x.deviation != y.deviation) return x.deviation > y.deviation;
+      return x.point < y.point;
+    });
+    const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+    const auto fresh = insertCandidates(dt, cand, smin);
+    ctx.debug("Junction refinement round " + std::to_string(round) + ": " +
+              std::to_string(off.size()) + " junction particles not on a triple edge, " +
+              std::to_string(fresh.size()) + " line points inserted");
+    inserted += fresh.size();
+    if (fresh.empty()) break;
+    relabelAround(field, dt, fresh, threads);
+  }
+  return inserted;
+}
+
 }  // namespace
 
 BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector<Vec3>& points,
                                   const SurfaceSamples& samples, RunContext& ctx,
-                                  double facetDistance) {
+                                  double facetDistance, const Junctions* junctions,
+                                  bool voxelRefinement) {
   const PreprocessedVolume& vol = field.volume();
   auto ld = std::make_shared<LabelledDelaunay>();
   ld->impl = std::make_unique<LabelledDelaunay::Impl>();
@@ -496,6 +609,7 @@ BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector
     const Vec3 c = vol.localToCanonical(l);
     pts.emplace_back(Point(c[0], c[1], c[2]), int32_t(pts.size()));
   }
+  const bool particlesAreVertices = pts.size() >= 4;
   if (pts.size() < 4) {
     // Tiny inputs: the sampling spacing exceeds the whole structure; use every interface vertex.
     pts.clear();
@@ -518,7 +632,14 @@ BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector
   BoundarySurface out;
   if (facetDistance > 0) {
     out.refinementPoints = refineFacetDistance(field, dt, facetDistance, ctx);
-    out.voxelCentrePoints = refineVoxelCentres(field, dt, ctx);
+    if (voxelRefinement) out.voxelCentrePoints = refineVoxelCentres(field, dt, ctx);
+  }
+  if (junctions && !junctions->particles.empty() && facetDistance > 0 && particlesAreVertices &&
+      points.size() >= junctions->particles.size()) {
+    std::vector<Delaunay::Vertex_handle> jv(junctions->particles.size());
+    for (auto v = dt.finite_vertices_begin(); v != dt.finite_vertices_end(); ++v)
+      if (v->info() >= 0 && size_t(v->info()) < jv.size()) jv[size_t(v->info())] = v;
+    out.junctionPoints = refineJunctionEdges(field, dt, *junctions, jv, ctx, out.junctionsOffLines);
   }
   ctx.progress(0.6);
 

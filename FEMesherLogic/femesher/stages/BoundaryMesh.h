@@ -19,6 +19,7 @@
 
 #include <femesher/Types.h>
 #include <femesher/stages/IndicatorFunctions.h>
+#include <femesher/stages/Junctions.h>
 #include <femesher/stages/SurfaceSampling.h>
 
 #include <memory>
@@ -57,15 +58,21 @@ struct BoundarySurface {
   std::vector<int> forcedLabels;    ///< compact labels given to the tets holding their voxels
   size_t refinementPoints = 0;      ///< points inserted by the facet-distance refinement
   size_t voxelCentrePoints = 0;     ///< points inserted so voxel centres fall in their label
+  size_t junctionPoints = 0;        ///< triple-line points inserted so the lines become edges
+  size_t junctionsOffLines = 0;     ///< junction particles still on no triple edge afterwards
 };
 
 /// `points`: the particles (local voxel index positions). `dense`: every interface vertex, used
 /// to repair labels that the particles miss. `facetDistance` (mm, 0 = off): refine the surface
 /// until every interface triangle's centroid is within this distance of the interface f_a = f_b
 /// (points inserted on the interface, farthest first, never closer than half the triangle's
-/// shortest edge to another vertex; at most 10 rounds).
+/// shortest edge to another vertex; at most 10 rounds), then the voxel centres (each next to
+/// another label must fall in a tet of its label), then, with `junctions` (whose particles must
+/// be the first points), the triple lines: where a junction particle is on no edge of three
+/// materials, located line points are inserted between it and its neighbour on the line.
 BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector<Vec3>& points,
                                   const SurfaceSamples& dense, RunContext& ctx,
-                                  double facetDistance = 0);
+                                  double facetDistance = 0, const Junctions* junctions = nullptr,
+                                  bool voxelRefinement = true);
 
 }  // namespace femesher

@@ -2,13 +2,16 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """FEMesher vs CGAL Mesh_3 on the same label map, side by side in one run, one table.
 
-  compare_with_cgal.py [--build build] [--threads 2] [--markdown out.md] [IN ...]
-  (no IN: the built-in phantom)
+  compare_with_cgal.py [--build build] [--threads 2] [--markdown out.md]
+                       [--fem-set key=value ...] [--cgal-edge-factor F] [--cgal-facet-distance D]
+                       [IN ...]      (no IN: the built-in phantom)
 
 Fair settings: both aim at the same boundary distance. CGAL gets FEMesher's facet_distance (its
 surface refinement bound, parameters.facet_distance voxels of the smallest spacing) as
 facet_distance, FEMesher's surface element size (counts.target_edge_length_mm) as facet_size and
-edge_size, and twice that as cell_size. Both are
+edge_size, and twice that as cell_size. To compare at equal fidelity rather than equal settings,
+--fem-set changes FEMesher's parameters only, and --cgal-edge-factor (x mean voxel spacing) and
+--cgal-facet-distance (voxels) fix CGAL's instead of copying FEMesher's. Both are
 judged by the same quality and fidelity code (FEMesherLogic). Timings are wall seconds on this
 machine: never asserted anywhere, only printed."""
 import argparse
@@ -23,6 +26,9 @@ ap.add_argument("inputs", nargs="*")
 ap.add_argument("--build", default="build")
 ap.add_argument("--threads", type=int, default=2)
 ap.add_argument("--markdown")
+ap.add_argument("--fem-set", action="append", default=[], help="key=value for FEMesher only")
+ap.add_argument("--cgal-edge-factor", type=float, help="CGAL facet/edge size in mean voxel spacings")
+ap.add_argument("--cgal-facet-distance", type=float, help="CGAL facet_distance in voxels")
 args = ap.parse_args()
 femesher = os.path.join(args.build, "bin", "femesher")
 peer = os.path.join(args.build, "bin", "cgal_mesh3_peer")
@@ -52,14 +58,19 @@ for path in inputs:
     name = os.path.basename(path)
     rep = os.path.join(tmp, name + ".json")
     t = time.time()
+    fem_set = [x for kv in args.fem_set for x in ("--set", kv)]
     subprocess.run([femesher, "mesh", path, "-o", os.path.join(tmp, name + ".fem.vtu"), "--report", rep,
-                    "--threads", str(args.threads), "-q"], check=True)
+                    "--threads", str(args.threads), "-q", *fem_set], check=True)
     fem_wall = time.time() - t
     r = json.load(open(rep))
     fem_mesh_s = sum(s["seconds"] for s in r["stages"] if s["name"] not in ("Quality", "Fidelity"))
     h = r["counts"]["target_edge_length_mm"]
     sp = min(r["input"]["spacing"])
     fd = float(r["parameters"].get("facet_distance", 0.5)) or 0.5
+    if args.cgal_facet_distance:
+        fd = args.cgal_facet_distance
+    if args.cgal_edge_factor:
+        h = args.cgal_edge_factor * sum(r["input"]["spacing"]) / 3
     t = time.time()
     out = subprocess.run([peer, path, "-o", os.path.join(tmp, name + ".cgal.vtu"), "--threads", str(args.threads),
                           "--facet-size", str(h), "--edge-size", str(h), "--cell-size", str(2 * h),
