@@ -253,13 +253,17 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
     double junctionShare = 0;
     bool ldtUsed = false;
     const bool useLdt = params.surfaceMesher == "ldt";
+    double restrictedSeconds = 0, ldtSeconds = 0;
     {
       StageScope st(ctx, result.timings, "BoundaryMesh");
+      const auto boundaryStart = Clock::now();
       const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
       surface = buildBoundaryMesh(*field, particles, samples, ctx, params.facetDistance * smin,
                                   &junctions, params.voxelRefinement);
+      restrictedSeconds = std::chrono::duration<double>(Clock::now() - boundaryStart).count();
       junctionShare = junctionsOnTripleEdges(surface, vol, particles, junctions.particles.size(), ctx);
       if (useLdt) {
+        const auto ldtStart = Clock::now();
         // The particles as the system left them (junction particles carry their label sets).
         std::vector<Particle> plist = ps.particles;
         if (plist.empty()) {
@@ -272,14 +276,29 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
             plist.push_back(p);
           }
         }
-        ldt = buildLocalDelaunaySurface(*field, plist, junctions, *surface.delaunay, ctx);
-        if (ldt.openEdgesAfter > 0) {
-          // An open surface would let TetGen's regions leak into each other (wrong materials):
-          // keep the watertight restricted-Delaunay surface instead, and say so.
+        // The local Delaunay surface is made of the particles alone: its natural neighbours and
+        // its last-resort closure come from the restricted Delaunay surface of the particles,
+        // without the points the refinement above inserted.
+        const bool refined =
+            surface.refinementPoints + surface.voxelCentrePoints + surface.junctionPoints > 0;
+        BoundarySurface particlesOnly;
+        if (refined) particlesOnly = buildBoundaryMesh(*field, particles, samples, ctx);
+        ldt = buildLocalDelaunaySurface(*field, plist, junctions, refined ? particlesOnly : surface,
+                                        ctx);
+        ldtSeconds = std::chrono::duration<double>(Clock::now() - ldtStart).count();
+        if (ldt.openEdgesAfter > 0 || ldt.selfIntersectionsAfter > 0) {
+          // An open surface would let TetGen's regions leak into each other (wrong materials), a
+          // self-intersecting one is no valid PLC: keep the restricted-Delaunay surface instead.
           ctx.warn("The local Delaunay surface still has " + std::to_string(ldt.openEdgesAfter) +
-                   " open edges after hole filling; the restricted Delaunay surface (watertight) "
-                   "is used instead.");
+                   " open edges and " + std::to_string(ldt.selfIntersectionsAfter) +
+                   " self-intersections after hole filling; the restricted Delaunay surface "
+                   "(watertight) is used instead.");
         } else {
+          if (ldt.fromRestricted > 0)
+            ctx.info("The local Delaunay surface was closed with " +
+                     std::to_string(ldt.fromRestricted) + " restricted-Delaunay triangles (" +
+                     std::to_string(ldt.restrictedComponents) + " regions; " +
+                     std::to_string(ldt.replacedTriangles) + " local triangles replaced).");
           // Replace the restricted-Delaunay triangles by the LDT ones (used vertices only).
           std::vector<int32_t> id(plist.size(), -1);
           surface.points.clear();
@@ -395,8 +414,22 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
                      {"junction_refinement_points", double(surface.junctionPoints)},
                      {"ldt_open_edges", double(ldt.openEdgesAfter)},
                      {"ldt_open_edges_before_filling", double(ldt.openEdgesBefore)},
+                     {"ldt_open_edges_after_loop_fill", double(ldt.openEdgesAfterFill)},
+                     {"ldt_hole_loops", double(ldt.holeLoops)},
                      {"ldt_holes_filled", double(ldt.holesFilled)},
                      {"ldt_non_manifold_removed", double(ldt.nonManifoldRemoved)},
+                     {"ldt_triangles", double(ldt.triangles.size())},
+                     {"ldt_triangles_from_stars", double(ldt.fromStars)},
+                     {"ldt_triangles_from_single_vote", double(ldt.fromSingleVote)},
+                     {"ldt_triangles_from_loop_fill", double(ldt.fromLoopFill)},
+                     {"ldt_triangles_from_restricted", double(ldt.fromRestricted)},
+                     {"ldt_restricted_components", double(ldt.restrictedComponents)},
+                     {"ldt_triangles_replaced", double(ldt.replacedTriangles)},
+                     {"ldt_self_intersections_found", double(ldt.selfIntersections)},
+                     {"ldt_self_intersections", double(ldt.selfIntersectionsAfter)},
+                     {"ldt_triple_line_links", double(ldt.lineLinks)},
+                     {"ldt_triple_line_open_ends", double(ldt.lineEnds)},
+                     {"ldt_used", ldtUsed ? 1.0 : 0.0},
                      {"vertices", double(mesh.points.size())},
                      {"tets", double(mesh.tets.size())}};
     result.warnings = ctx.warnings();
@@ -425,6 +458,10 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
     report["surface_mesher"] = params.surfaceMesher;
     report["surface_mesher_used"] = useLdt && !ldtUsed ? "delaunay (ldt surface not watertight)"
                                                         : params.surfaceMesher;
+    // Wall seconds of the two surface meshers inside the BoundaryMesh stage (the local Delaunay
+    // one runs after, and uses, the restricted Delaunay one).
+    report["surface_mesher_seconds"] = {{"restricted_delaunay", restrictedSeconds},
+                                        {"ldt", ldtSeconds}};
     report["volume_mesh"] = {{"method", vm.method}, {"tetgen_switches", vm.switches},
                              {"dropped_cavity_tets", vm.droppedCavityTets}};
     report["quality"] = json::parse(qualityReportToJson(result.quality, true));
