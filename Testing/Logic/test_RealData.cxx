@@ -8,12 +8,18 @@
 #include <femesher/Phantom.h>
 #include <femesher/Pipeline.h>
 #include <femesher/io/LabelMapIO.h>
+#include <femesher/stages/BoundaryMesh.h>
+#include <femesher/stages/IndicatorFunctions.h>
+#include <femesher/stages/Junctions.h>
+#include <femesher/stages/LabelPreprocess.h>
+#include <femesher/stages/SurfaceSampling.h>
 
 #include <gtest/gtest.h>
 
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <memory>
 
 using namespace femesher;
 using namespace femesher::testing;
@@ -168,3 +174,38 @@ INSTANTIATE_TEST_SUITE_P(SharedData, RealDataLdt,
                          });
 
 TEST(RealDataLdtPhantom, BuiltInPhantomLocalDelaunaySurface) { checkLdt(makePhantom(), "phantom"); }
+
+// The surface refinement once depended on which of a facet's two Delaunay cells CGAL reported it
+// from (heap addresses), so the same knee gave a slightly different surface from run to run. The
+// boundary mesh (with facet-distance, voxel-centre and junction refinement) is built twice here,
+// the second time with a differently laid-out heap, and must come out identical.
+TEST(RealDataDeterminism, KneeBoundaryMeshIndependentOfHeapLayout) {
+  const std::string path = dataFile("9135902_00m_WB01.nii.gz");
+  ASSERT_TRUE(std::filesystem::exists(path)) << "missing data file " << path;
+  auto v = readLabelMap(path);
+  ASSERT_TRUE(v.isOk()) << v.status().message();
+  RunContext ctx;
+  ctx.setThreads(2);
+  const PreprocessedVolume vol = preprocessLabels(v.value(), {}, ctx);
+  const IndicatorField field = computeIndicatorFunctions(vol, {}, ctx);
+  const double h = 3 * (vol.spacing[0] + vol.spacing[1] + vol.spacing[2]) / 3;
+  const SizingFunction sizing = [h](const Vec3&) { return h; };
+  SurfaceSamplingParameters sp;
+  sp.targetEdgeLength = h;
+  const SurfaceSamples samples = sampleInterfaces(field, v.value(), sp, ctx);
+  const Junctions junctions = findJunctions(field, sizing, {}, ctx);
+  std::vector<Vec3> points;
+  for (const auto& j : junctions.particles) points.push_back(j.local);
+  for (uint32_t i : samples.selected) points.push_back(samples.all[i].local);
+  const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+  const BoundarySurface a = buildBoundaryMesh(field, points, samples, ctx, 0.5 * smin, &junctions);
+  std::vector<std::unique_ptr<char[]>> junk;
+  for (size_t i = 0; i < 20000; ++i) junk.emplace_back(new char[16 + (i * 7919) % 150000]);
+  for (size_t i = 0; i < junk.size(); i += 3) junk[i].reset();
+  const BoundarySurface b = buildBoundaryMesh(field, points, samples, ctx, 0.5 * smin, &junctions);
+  EXPECT_GT(a.refinementPoints + a.voxelCentrePoints, 0u);
+  EXPECT_EQ(a.refinementPoints, b.refinementPoints);
+  EXPECT_EQ(a.voxelCentrePoints, b.voxelCentrePoints);
+  EXPECT_EQ(a.points, b.points);
+  EXPECT_EQ(a.triangles, b.triangles);
+}

@@ -146,11 +146,20 @@ struct Candidate {
   double exclusion;
 };
 
-/// Inserts `cand` (sorted farthest first) greedily: a candidate closer than its exclusion radius
-/// to an already inserted candidate or to any vertex of the triangulation is skipped. Returns the
-/// new vertices (info = kRefinementPoint).
-std::vector<Delaunay::Vertex_handle> insertCandidates(Delaunay& dt, const std::vector<Candidate>& cand,
+/// Inserts the candidates with a non-zero deviation greedily, largest deviation first (ties by
+/// position, so the order does not depend on threads): a candidate closer than its exclusion
+/// radius to an already inserted candidate or to any vertex of the triangulation is skipped.
+/// Returns the new vertices (info = kRefinementPoint).
+std::vector<Delaunay::Vertex_handle> insertCandidates(Delaunay& dt, std::vector<Candidate> cand,
                                                       double cell) {
+  cand.erase(std::remove_if(cand.begin(), cand.end(),
+                            [](const Candidate& c) { return c.deviation == 0; }),
+             cand.end());
+  std::sort(cand.begin(), cand.end(), [](const Candidate& x, const Candidate& y) {
+    if (x.deviation != y.deviation) return x.deviation > y.deviation;
+    return x.point < y.point;
+  });
+
   std::unordered_map<uint64_t, std::vector<Vec3>> grid;
   auto key = [](int64_t x, int64_t y, int64_t z) {
     return (uint64_t(x & 0x1FFFFF) << 42) | (uint64_t(y & 0x1FFFFF) << 21) | uint64_t(z & 0x1FFFFF);
@@ -229,6 +238,9 @@ size_t refineFacetDistance(const IndicatorField& field, Delaunay& dt, double del
       const Point& q = c->vertex((i + 1 + k) % 4)->point();
       x.p[size_t(k)] = {q.x(), q.y(), q.z()};
     }
+    // The same facet seen from either cell gives the same candidate to the last bit (the
+    // arithmetic below depends on the vertex order).
+    std::sort(x.p.begin(), x.p.end());
     out.push_back(x);
   };
   for (int round = 0; round < kRefineRounds; ++round) {
@@ -332,19 +344,14 @@ size_t refineFacetDistance(const IndicatorField& field, Delaunay& dt, double del
       }
     });
     ctx.checkCancel();
-    cand.erase(std::remove_if(cand.begin(), cand.end(),
-                              [](const Candidate& c) { return c.deviation == 0; }),
-               cand.end());
-    if (cand.empty()) break;
-    std::sort(cand.begin(), cand.end(), [](const Candidate& x, const Candidate& y) {
-      if (x.deviation != y.deviation) return x.deviation > y.deviation;
-      return x.point < y.point;
-    });
-    fresh = insertCandidates(dt, cand, smin);
+    const size_t tooFar = size_t(std::count_if(cand.begin(), cand.end(),
+                                               [](const Candidate& c) { return c.deviation != 0; }));
+    if (tooFar == 0) break;
+    fresh = insertCandidates(dt, std::move(cand), smin);
     const size_t roundInserted = fresh.size();
     inserted += roundInserted;
     ctx.debug("Facet-distance refinement round " + std::to_string(round) + ": " +
-              std::to_string(facets.size()) + " facets checked, " + std::to_string(cand.size()) +
+              std::to_string(facets.size()) + " facets checked, " + std::to_string(tooFar) +
               " too far, " + std::to_string(roundInserted) + " points inserted (" +
               std::to_string(secondsSince(t0)) + " s)");
     if (roundInserted == 0) break;
@@ -439,14 +446,7 @@ size_t refineVoxelCentres(const IndicatorField& field, Delaunay& dt, RunContext&
     }, chunks);
     ctx.checkCancel();
     const size_t nWrong = size_t(std::count(wrong.begin(), wrong.end(), 1));
-    cand.erase(std::remove_if(cand.begin(), cand.end(),
-                              [](const Candidate& c) { return c.deviation == 0; }),
-               cand.end());
-    std::sort(cand.begin(), cand.end(), [](const Candidate& x, const Candidate& y) {
-      if (x.deviation != y.deviation) return x.deviation > y.deviation;
-      return x.point < y.point;
-    });
-    const auto fresh = insertCandidates(dt, cand, smin);
+    const auto fresh = insertCandidates(dt, std::move(cand), smin);
     ctx.debug("Voxel-centre refinement round " + std::to_string(round) + ": " +
               std::to_string(voxels.size()) + " of " + std::to_string(allVoxels) +
               " boundary voxels checked, " + std::to_string(nWrong) +
@@ -572,15 +572,8 @@ size_t refineJunctionEdges(const IndicatorField& field, Delaunay& dt, const Junc
       }
     });
     ctx.checkCancel();
-    cand.erase(std::remove_if(cand.begin(), cand.end(),
-                              [](const Candidate& c) { return c.deviation == 0; }),
-               cand.end());
-    std::sort(cand.begin(), cand.end(), [](const Candidate& x, const Candidate& y) {
-      if (x.deviation != y.deviation) return x.deviation > y.deviation;
-      return x.point < y.point;
-    });
     const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
-    const auto fresh = insertCandidates(dt, cand, smin);
+    const auto fresh = insertCandidates(dt, std::move(cand), smin);
     ctx.debug("Junction refinement round " + std::to_string(round) + ": " +
               std::to_string(off.size()) + " junction particles not on a triple edge, " +
               std::to_string(fresh.size()) + " line points inserted");
