@@ -126,6 +126,12 @@ const std::vector<Binding>& bindings() {
          "TetGen mesh optimisation level (-O): flips and smoothing against slivers.", true},
         [](MeshingParameters& p, double x) { p.optimizationLevel = int(x); },
         [](const MeshingParameters& p) { return double(p.optimizationLevel); });
+    add({"volume_per_material", "bool", "", "", 0, 1, "Mesh materials in parallel",
+         "With preserve_interfaces: TetGen meshes each material on its own, several at a time (one "
+         "per thread); the pieces share the unsplit interface triangles. Off: one TetGen run for "
+         "the whole surface.", true},
+        [](MeshingParameters& p, double x) { p.volumePerMaterial = x != 0; },
+        [](const MeshingParameters& p) { return p.volumePerMaterial ? 1.0 : 0.0; });
     add({"threads", "int", "", "", 0, 1024, "Threads", "Worker threads; 0 = all cores.", true},
         [](MeshingParameters& p, double x) { p.threads = int(x); },
         [](const MeshingParameters& p) { return double(p.threads); });

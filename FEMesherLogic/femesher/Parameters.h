@@ -84,6 +84,9 @@ struct MeshingParameters {
   bool preserveInterfaces = true;
   /// Optimisation level of TetGen's mesh improvement (-O), 0..10.
   int optimizationLevel = 3;
+  /// With preserve_interfaces: one TetGen run per material, several side by side (faster on
+  /// several cores; the runs share the unsplit interface triangles, so the mesh is conformal).
+  bool volumePerMaterial = true;
 
   // --- Run ------------------------------------------------------------------------------------
   int threads = 0;     ///< 0 = all cores

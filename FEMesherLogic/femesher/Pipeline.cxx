@@ -338,6 +338,7 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
       vp.maxTetVolume = params.maxTetVolume;
       vp.preserveInterfaces = params.preserveInterfaces;
       vp.optimizationLevel = params.optimizationLevel;
+      vp.perMaterial = params.volumePerMaterial;
       if (sizingField && params.volumeSizing) {
         vp.pointSizes.reserve(surface.points.size());
         for (const auto& p : surface.points) vp.pointSizes.push_back(sizing(p));
@@ -405,6 +406,8 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
                      {"surface_vertices", double(surface.points.size())},
                      {"surface_triangles", double(surface.triangles.size())},
                      {"tetgen_regions", double(vm.regions)},
+                     {"tetgen_runs", double(vm.tetgenRuns)},
+                     {"tetgen_hole_points", double(vm.holePoints)},
                      {"surface_checksum", surfaceChecksum(surface)},
                      {"junction_particles_on_triple_edges", junctionShare},
                      {"surface_open_edges", double(countOpenEdges(surface.triangles,

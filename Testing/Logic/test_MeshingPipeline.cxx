@@ -11,6 +11,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <map>
 #include <cmath>
 #include <thread>
 
@@ -311,4 +312,72 @@ TEST(MeshingPipeline, SurfaceRefinementPutsVoxelCentresInTheirLabel) {
   EXPECT_GT(count(b.value(), "voxel_centre_refinement_points") + count(b.value(), "surface_refinement_points"), 0);
   EXPECT_EQ(count(a.value(), "voxel_centre_refinement_points"), 0);
   EXPECT_EQ(count(a.value(), "surface_refinement_points"), 0);
+}
+
+namespace {
+
+/// Balls in a shell (ballsInShell) plus two cavities: an empty (background) pocket inside ball 1
+/// and a small ball of label 4 inside ball 2, i.e. regions enclosed by another material.
+LabelVolume ballsWithCavities(int n = 40) {
+  LabelVolume v = ballsInShell(n);
+  const double c = (n - 1) / 2.0;
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) {
+        const double x = i - c, y = j - c, z = k - c;
+        if ((x + 0.18 * n) * (x + 0.18 * n) + y * y + z * z < 0.01 * n * n)
+          v.labels[v.index(i, j, k)] = 0;
+        if ((x - 0.18 * n) * (x - 0.18 * n) + y * y + z * z < 0.01 * n * n)
+          v.labels[v.index(i, j, k)] = 4;
+      }
+  v.materials.push_back({4, "m4", defaultLabelColor(4)});
+  return v;
+}
+
+std::map<int32_t, double> labelVolumes(const TetMesh& m) {
+  std::map<int32_t, double> vol;
+  for (size_t t = 0; t < m.tets.size(); ++t) vol[m.tetLabels[t]] += m.tetVolume(t);
+  return vol;
+}
+
+}  // namespace
+
+// Each material meshed on its own (cavities as holes, several TetGen runs side by side) gives the
+// same material volumes as one TetGen run of the whole surface: the interface triangles are
+// kept exactly, so each material's volume is the one its surface encloses. The empty pocket
+// stays empty, the enclosed ball keeps its own label, and the pieces fit together conformally.
+TEST(VolumeMesh, PerMaterialRunsMatchOneRunOfTheWholeSurface) {
+  const LabelVolume v = ballsWithCavities();
+  MeshingParameters p;
+  p.threads = 2;
+  p.computeFidelity = false;
+  RunContext c1, c2;
+  auto split = runPipeline(v, p, c1);
+  p.volumePerMaterial = false;
+  auto whole = runPipeline(v, p, c2);
+  ASSERT_TRUE(split.isOk()) << split.status().message();
+  ASSERT_TRUE(whole.isOk()) << whole.status().message();
+  std::map<std::string, double> cs(split->counts.begin(), split->counts.end()),
+      cw(whole->counts.begin(), whole->counts.end());
+  EXPECT_EQ(cs["tetgen_runs"], 4.0);
+  EXPECT_GE(cs["tetgen_hole_points"], 2.0);  // the pocket and ball 4, seen from the balls
+  EXPECT_EQ(cw["tetgen_runs"], 1.0);
+  EXPECT_EQ(cs["surface_checksum"], cw["surface_checksum"]);
+  EXPECT_NE(split->reportJson.find("\"method\": \"tetgen\""), std::string::npos);
+  expectConformal(split->mesh);
+  for (size_t t = 0; t < split->mesh.tets.size(); ++t) ASSERT_GT(split->mesh.tetVolume(t), 0) << t;
+  const auto vs = labelVolumes(split->mesh), vw = labelVolumes(whole->mesh);
+  ASSERT_EQ(vs.size(), 4u);
+  ASSERT_EQ(vw.size(), 4u);
+  for (const auto& [l, x] : vw) EXPECT_NEAR(vs.at(l), x, 1e-9 * x) << "label " << l;
+  // The pocket is empty: no tet centroid inside it.
+  const double c = (v.dims[0] - 1) / 2.0, n = v.dims[0];
+  for (size_t t = 0; t < split->mesh.tets.size(); ++t) {
+    Vec3 g{0, 0, 0};
+    for (int32_t id : split->mesh.tets[t])
+      for (int a = 0; a < 3; ++a) g[a] += split->mesh.points[size_t(id)][a] / 4;
+    const Vec3 ijk = v.physicalToIndex(g);
+    const double x = ijk[0] - c + 0.18 * n, y = ijk[1] - c, z = ijk[2] - c;
+    EXPECT_GT(x * x + y * y + z * z, 0.005 * n * n) << "tet " << t << " fills the empty pocket";
+  }
 }

@@ -63,6 +63,92 @@ void LabelledDelaunay::adjacency(size_t n, std::vector<uint32_t>& offsets,
   for (auto& a : adj) neighbours.insert(neighbours.end(), a.begin(), a.end());
 }
 
+std::vector<std::vector<Vec3>> LabelledDelaunay::enclosedHolePoints() const {
+  const Delaunay& dt = impl->dt;
+  const int nLabels = impl->labels + 1;
+  // Regions: connected sets of same-label cells (the infinite cells, label 0, join the outside).
+  std::vector<Delaunay::Cell_handle> cells;
+  cells.reserve(dt.number_of_cells());
+  for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c) cells.push_back(c);
+  std::unordered_map<const void*, uint32_t> index;
+  index.reserve(cells.size());
+  for (size_t i = 0; i < cells.size(); ++i) index.emplace(&*cells[i], uint32_t(i));
+  auto labelOf = [&](Delaunay::Cell_handle c) { return dt.is_infinite(c) ? 0 : c->info(); };
+  constexpr uint32_t kNone = ~0u;
+  std::vector<uint32_t> region(cells.size(), kNone);
+  std::vector<uint32_t> representative;  // a finite cell of the region, or kNone
+  std::vector<int> regionLabel;
+  std::vector<char> outside;
+  std::vector<uint32_t> stack;
+  for (size_t seed = 0; seed < cells.size(); ++seed) {
+    if (region[seed] != kNone) continue;
+    const uint32_t r = uint32_t(regionLabel.size());
+    const int l = labelOf(cells[seed]);
+    regionLabel.push_back(l);
+    representative.push_back(kNone);
+    outside.push_back(0);
+    region[seed] = r;
+    stack.assign(1, uint32_t(seed));
+    while (!stack.empty()) {
+      const uint32_t ci = stack.back();
+      stack.pop_back();
+      const auto c = cells[ci];
+      if (dt.is_infinite(c)) outside[r] = 1;
+      else if (representative[r] == kNone) representative[r] = ci;
+      for (int k = 0; k < 4; ++k) {
+        const auto n = c->neighbor(k);
+        const uint32_t ni = index.at(&*n);
+        if (region[ni] != kNone || labelOf(n) != l) continue;
+        region[ni] = r;
+        stack.push_back(ni);
+      }
+    }
+  }
+  // Region adjacency (each pair once).
+  std::vector<std::pair<uint32_t, uint32_t>> edges;
+  for (size_t i = 0; i < cells.size(); ++i)
+    for (int k = 0; k < 4; ++k) {
+      const uint32_t j = index.at(&*cells[i]->neighbor(k));
+      if (region[i] < region[j]) edges.emplace_back(region[i], region[j]);
+    }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  // Per label m: components of the other regions joined by their adjacencies; each component
+  // that does not reach the outside is a cavity of m.
+  std::vector<std::vector<Vec3>> holes(static_cast<size_t>(nLabels));
+  std::vector<uint32_t> parent(regionLabel.size());
+  auto find = [&](uint32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (int m = 1; m < nLabels; ++m) {
+    for (uint32_t r = 0; r < parent.size(); ++r) parent[r] = r;
+    for (const auto& [a, b] : edges) {
+      if (regionLabel[a] == m || regionLabel[b] == m) continue;
+      uint32_t x = find(a), y = find(b);
+      if (x == y) continue;
+      if (y < x) std::swap(x, y);
+      parent[y] = x;
+    }
+    std::vector<char> reaches(parent.size(), 0), touchesM(parent.size(), 0);
+    for (uint32_t r = 0; r < parent.size(); ++r)
+      if (regionLabel[r] != m && outside[r]) reaches[find(r)] = 1;
+    for (const auto& [a, b] : edges) {  // only cavities that m's surface bounds matter
+      if (regionLabel[a] == m && regionLabel[b] != m) touchesM[find(b)] = 1;
+      if (regionLabel[b] == m && regionLabel[a] != m) touchesM[find(a)] = 1;
+    }
+    for (uint32_t r = 0; r < parent.size(); ++r) {
+      if (regionLabel[r] == m || find(r) != r || reaches[r] || !touchesM[r]) continue;
+      // The root is the component's lowest region id; its representative is a finite cell.
+      const auto c = cells[representative[r]];
+      const Point g = CGAL::centroid(c->vertex(0)->point(), c->vertex(1)->point(),
+                                     c->vertex(2)->point(), c->vertex(3)->point());
+      holes[size_t(m)].push_back({g.x(), g.y(), g.z()});
+    }
+  }
+  return holes;
+}
+
 void LabelledDelaunay::exportTets(std::vector<Vec3>& points,
                                   std::vector<std::array<int32_t, 4>>& tets,
                                   std::vector<int32_t>& labels) const {

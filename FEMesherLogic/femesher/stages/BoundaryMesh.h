@@ -41,6 +41,13 @@ class LabelledDelaunay {
   /// For every input point (by its index in `points` of buildBoundaryMesh), the indices of the
   /// input points joined to it by a Delaunay edge (CSR: offsets has n+1 entries).
   void adjacency(size_t n, std::vector<uint32_t>& offsets, std::vector<uint32_t>& neighbours) const;
+  /// For every compact label m (index m, 0..labels), one point inside each region that m's
+  /// interface triangles enclose but that is not m (a cavity of another material, or of
+  /// background, inside m): the hole points that make a tetrahedralisation of m's boundary alone
+  /// hold m's tets only. A region is a connected set of tets of labels other than m (joined
+  /// through faces that are not m's interface); those reaching the convex hull are not enclosed.
+  /// Each point is the centroid of a tet of the region (strictly inside it). Canonical mm.
+  std::vector<std::vector<Vec3>> enclosedHolePoints() const;
   /// The labelled tets themselves (label != 0), canonical coordinates, compact labels.
   void exportTets(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
                   std::vector<int32_t>& labels) const;

@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
 #include <femesher/Status.h>
 #include <femesher/stages/VolumeMesh.h>
@@ -41,6 +42,17 @@ double signedVolume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) 
           u[2] * (v[0] * w[1] - v[1] * w[0])) / 6.0;
 }
 
+/// One TetGen problem: a closed piecewise-linear complex made of interface triangles.
+struct TetgenInput {
+  std::vector<Vec3> points;
+  std::vector<std::array<int32_t, 3>> triangles;
+  std::vector<int> markers;      ///< facet marker per triangle (interface id)
+  std::vector<Vec3> holes;       ///< points inside regions TetGen must leave empty
+  std::vector<double> sizes;     ///< per point target edge length for -m (empty = none)
+  std::vector<int32_t> globalId; ///< per point its index in the whole surface
+  int label = -1;                ///< the material it holds (-1: every region, labelled later)
+};
+
 /// TetGen's output as plain arrays.
 struct TetgenOutput {
   std::vector<double> points;  // 3 per point
@@ -49,8 +61,8 @@ struct TetgenOutput {
 };
 
 /// Runs TetGen in this process; returns false (and the error text) when it throws.
-bool runTetgen(const BoundarySurface& s, const std::vector<double>& sizes,
-               const std::string& switches, TetgenOutput& result, std::string& error) {
+bool runTetgen(const TetgenInput& s, const std::string& switches, TetgenOutput& result,
+               std::string& error) {
   tetgenio out;
   tetgenio in;
   in.firstnumber = 0;
@@ -58,14 +70,11 @@ bool runTetgen(const BoundarySurface& s, const std::vector<double>& sizes,
   in.pointlist = new REAL[3 * s.points.size()];
   for (size_t i = 0; i < s.points.size(); ++i)
     for (int a = 0; a < 3; ++a) in.pointlist[3 * i + a] = s.points[i][a];
-  if (sizes.size() == s.points.size()) {
+  if (s.sizes.size() == s.points.size()) {
     in.numberofpointmtrs = 1;
-    in.pointmtrlist = new REAL[sizes.size()];
-    for (size_t i = 0; i < sizes.size(); ++i) in.pointmtrlist[i] = sizes[i];
+    in.pointmtrlist = new REAL[s.sizes.size()];
+    for (size_t i = 0; i < s.sizes.size(); ++i) in.pointmtrlist[i] = s.sizes[i];
   }
-  // Interface ids for facet markers.
-  std::map<std::pair<uint16_t, uint16_t>, int> ids;
-  for (const auto& p : s.trianglePairs) ids.emplace(p, int(ids.size()) + 1);
   in.numberoffacets = int(s.triangles.size());
   in.facetlist = new tetgenio::facet[s.triangles.size()];
   in.facetmarkerlist = new int[s.triangles.size()];
@@ -78,7 +87,13 @@ bool runTetgen(const BoundarySurface& s, const std::vector<double>& sizes,
     fc.polygonlist[0].numberofvertices = 3;
     fc.polygonlist[0].vertexlist = new int[3];
     for (int k = 0; k < 3; ++k) fc.polygonlist[0].vertexlist[k] = s.triangles[f][k];
-    in.facetmarkerlist[f] = ids[s.trianglePairs[f]];
+    in.facetmarkerlist[f] = s.markers[f];
+  }
+  if (!s.holes.empty()) {
+    in.numberofholes = int(s.holes.size());
+    in.holelist = new REAL[3 * s.holes.size()];
+    for (size_t h = 0; h < s.holes.size(); ++h)
+      for (int a = 0; a < 3; ++a) in.holelist[3 * h + a] = s.holes[h][a];
   }
   std::vector<char> sw(switches.begin(), switches.end());
   sw.push_back('\0');
@@ -117,64 +132,37 @@ bool writeAll(int fd, const void* data, size_t n) {
   return true;
 }
 
-/// Runs TetGen in a child process so that a cancel request can stop it at once (TetGen itself
-/// has no cancel hook): the parent polls the cancel token while it reads the result from a pipe,
-/// and kills the child when asked to stop. Falls back to in-process when fork() fails.
-bool runTetgenCancelable(const BoundarySurface& s, const std::vector<double>& sizes,
-                         const std::string& switches, TetgenOutput& result, std::string& error,
-                         RunContext& ctx) {
-  int fds[2];
-  if (::pipe(fds) != 0) return runTetgen(s, sizes, switches, result, error);
-  const pid_t pid = ::fork();
-  if (pid < 0) {
-    ::close(fds[0]);
-    ::close(fds[1]);
-    return runTetgen(s, sizes, switches, result, error);
+/// The result of one TetGen job.
+struct JobResult {
+  bool ok = false;
+  std::string error;
+  TetgenOutput out;
+};
+
+/// Child side: mesh, stream the result through `fd`, leave without running any exit handler.
+[[noreturn]] void runChild(const TetgenInput& input, const std::string& switches, int fd) {
+  TetgenOutput r;
+  std::string err;
+  const bool ok = runTetgen(input, switches, r, err);
+  const int32_t status = ok ? 0 : 1;
+  bool w = writeAll(fd, &status, sizeof status);
+  if (ok) {
+    const uint64_t n[3] = {r.points.size(), r.tets.size(), r.regions.size()};
+    w = w && writeAll(fd, n, sizeof n) &&
+        writeAll(fd, r.points.data(), r.points.size() * sizeof(double)) &&
+        writeAll(fd, r.tets.data(), r.tets.size() * sizeof(int32_t)) &&
+        writeAll(fd, r.regions.data(), r.regions.size() * sizeof(double));
+  } else {
+    const uint64_t len = err.size();
+    w = w && writeAll(fd, &len, sizeof len) && writeAll(fd, err.data(), err.size());
   }
-  if (pid == 0) {  // child: mesh, stream the result, leave without running any exit handler
-    ::close(fds[0]);
-    TetgenOutput r;
-    std::string err;
-    const bool ok = runTetgen(s, sizes, switches, r, err);
-    const int32_t status = ok ? 0 : 1;
-    bool w = writeAll(fds[1], &status, sizeof status);
-    if (ok) {
-      const uint64_t n[3] = {r.points.size(), r.tets.size(), r.regions.size()};
-      w = w && writeAll(fds[1], n, sizeof n) &&
-          writeAll(fds[1], r.points.data(), r.points.size() * sizeof(double)) &&
-          writeAll(fds[1], r.tets.data(), r.tets.size() * sizeof(int32_t)) &&
-          writeAll(fds[1], r.regions.data(), r.regions.size() * sizeof(double));
-    } else {
-      const uint64_t len = err.size();
-      w = w && writeAll(fds[1], &len, sizeof len) && writeAll(fds[1], err.data(), err.size());
-    }
-    ::close(fds[1]);
-    ::_exit(w ? 0 : 3);
-  }
-  ::close(fds[1]);
-  std::vector<char> buffer;
-  char chunk[1 << 16];
-  bool canceled = false;
-  for (;;) {
-    if (ctx.isCanceled()) {
-      canceled = true;
-      break;
-    }
-    pollfd pfd{fds[0], POLLIN, 0};
-    const int pr = ::poll(&pfd, 1, 100);
-    if (pr < 0 && errno != EINTR) break;
-    if (pr <= 0) continue;
-    const ssize_t n = ::read(fds[0], chunk, sizeof chunk);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) break;
-    buffer.insert(buffer.end(), chunk, chunk + n);
-  }
-  ::close(fds[0]);
-  if (canceled) ::kill(pid, SIGKILL);
-  int wstatus = 0;
-  while (::waitpid(pid, &wstatus, 0) < 0 && errno == EINTR) {
-  }
-  if (canceled) ctx.checkCancel();
+  ::close(fd);
+  ::_exit(w ? 0 : 3);
+}
+
+/// Parent side: decodes what a child streamed.
+JobResult decodeChild(const std::vector<char>& buffer, int wstatus) {
+  JobResult res;
   size_t pos = 0;
   auto take = [&](void* dst, size_t n) {
     if (pos + n > buffer.size()) return false;
@@ -184,33 +172,272 @@ bool runTetgenCancelable(const BoundarySurface& s, const std::vector<double>& si
   };
   int32_t status = -1;
   if (!take(&status, sizeof status)) {
-    error = WIFSIGNALED(wstatus) ? "TetGen crashed (signal " + std::to_string(WTERMSIG(wstatus)) + ")"
-                                 : std::string("TetGen ended without a result");
-    return false;
+    res.error = WIFSIGNALED(wstatus) ? "TetGen crashed (signal " + std::to_string(WTERMSIG(wstatus)) + ")"
+                                     : std::string("TetGen ended without a result");
+    return res;
   }
   if (status != 0) {
     uint64_t len = 0;
     if (take(&len, sizeof len) && pos + len <= buffer.size())
-      error.assign(buffer.data() + pos, size_t(len));
+      res.error.assign(buffer.data() + pos, size_t(len));
     else
-      error = "TetGen failed";
-    return false;
+      res.error = "TetGen failed";
+    return res;
   }
   uint64_t n[3];
   if (!take(n, sizeof n)) {
-    error = "TetGen result was cut short";
-    return false;
+    res.error = "TetGen result was cut short";
+    return res;
   }
-  result.points.resize(n[0]);
-  result.tets.resize(n[1]);
-  result.regions.resize(n[2]);
-  if (!take(result.points.data(), n[0] * sizeof(double)) ||
-      !take(result.tets.data(), n[1] * sizeof(int32_t)) ||
-      !take(result.regions.data(), n[2] * sizeof(double))) {
-    error = "TetGen result was cut short";
-    return false;
+  TetgenOutput& r = res.out;
+  r.points.resize(n[0]);
+  r.tets.resize(n[1]);
+  r.regions.resize(n[2]);
+  if (!take(r.points.data(), n[0] * sizeof(double)) ||
+      !take(r.tets.data(), n[1] * sizeof(int32_t)) ||
+      !take(r.regions.data(), n[2] * sizeof(double))) {
+    res.error = "TetGen result was cut short";
+    return res;
+  }
+  res.ok = true;
+  return res;
+}
+
+/// Runs TetGen on every input, at most `parallel` at a time, each in a child process so that a
+/// cancel request stops them at once (TetGen itself has no cancel hook) and so that several
+/// run side by side: the parent polls the cancel token while it reads the results from pipes,
+/// and kills the children when asked to stop. Inputs start in the given order (put the largest
+/// first). A job whose fork() fails runs in this process. Progress goes from `p0` to `p1` by the
+/// inputs' triangle counts.
+std::vector<JobResult> runTetgenJobs(const std::vector<TetgenInput>& inputs,
+                                     const std::string& switches, int parallel, RunContext& ctx,
+                                     double p0, double p1) {
+  struct Running {
+    size_t job;
+    pid_t pid;
+    int fd;
+    std::vector<char> buffer;
+  };
+  std::vector<JobResult> results(inputs.size());
+  std::vector<Running> running;
+  size_t next = 0, doneTriangles = 0, allTriangles = 0;
+  for (const auto& in : inputs) allTriangles += in.triangles.size();
+  auto killAll = [&] {
+    for (auto& r : running) {
+      ::kill(r.pid, SIGKILL);
+      ::close(r.fd);
+      int ws = 0;
+      while (::waitpid(r.pid, &ws, 0) < 0 && errno == EINTR) {
+      }
+    }
+    running.clear();
+  };
+  while (next < inputs.size() || !running.empty()) {
+    if (ctx.isCanceled()) {
+      killAll();
+      ctx.checkCancel();
+    }
+    while (next < inputs.size() && int(running.size()) < std::max(1, parallel)) {
+      const size_t j = next++;
+      int fds[2];
+      pid_t pid = -1;
+      if (::pipe(fds) == 0) {
+        pid = ::fork();
+        if (pid == 0) {
+          ::close(fds[0]);
+          runChild(inputs[j], switches, fds[1]);
+        }
+        ::close(fds[1]);
+        if (pid < 0) ::close(fds[0]);
+      }
+      if (pid < 0) {  // no child: mesh here (cannot be canceled midway)
+        results[j].ok = runTetgen(inputs[j], switches, results[j].out, results[j].error);
+        doneTriangles += inputs[j].triangles.size();
+        continue;
+      }
+      running.push_back({j, pid, fds[0], {}});
+    }
+    if (running.empty()) continue;
+    std::vector<pollfd> pfds;
+    for (const auto& r : running) pfds.push_back({r.fd, POLLIN, 0});
+    const int pr = ::poll(pfds.data(), nfds_t(pfds.size()), 100);
+    if (pr < 0 && errno != EINTR) {
+      killAll();
+      throw Error(ErrorCode::MeshingFailed, "Volume meshing failed: poll() on TetGen's pipes failed.");
+    }
+    if (pr <= 0) continue;
+    char chunk[1 << 16];
+    for (size_t q = pfds.size(); q-- > 0;) {
+      if (!(pfds[q].revents & (POLLIN | POLLHUP | POLLERR))) continue;
+      Running& r = running[q];
+      const ssize_t n = ::read(r.fd, chunk, sizeof chunk);
+      if (n < 0 && errno == EINTR) continue;
+      if (n > 0) {
+        r.buffer.insert(r.buffer.end(), chunk, chunk + n);
+        continue;
+      }
+      ::close(r.fd);
+      int wstatus = 0;
+      while (::waitpid(r.pid, &wstatus, 0) < 0 && errno == EINTR) {
+      }
+      results[r.job] = decodeChild(r.buffer, wstatus);
+      doneTriangles += inputs[r.job].triangles.size();
+      running.erase(running.begin() + std::ptrdiff_t(q));
+      ctx.progress(p0 + (p1 - p0) * double(doneTriangles) / double(std::max<size_t>(1, allTriangles)));
+    }
+  }
+  return results;
+}
+
+/// The whole interface surface as one TetGen problem (regions numbered by TetGen, -A).
+TetgenInput wholeSurface(const BoundarySurface& s, const std::vector<double>& sizes) {
+  TetgenInput in;
+  in.points = s.points;
+  in.triangles = s.triangles;
+  std::map<std::pair<uint16_t, uint16_t>, int> ids;
+  for (const auto& p : s.trianglePairs) ids.emplace(p, int(ids.size()) + 1);
+  for (const auto& p : s.trianglePairs) in.markers.push_back(ids[p]);
+  if (sizes.size() == s.points.size()) in.sizes = sizes;
+  in.globalId.resize(s.points.size());
+  for (size_t i = 0; i < s.points.size(); ++i) in.globalId[i] = int32_t(i);
+  return in;
+}
+
+/// One TetGen problem per material: its interface triangles, and a hole in every cavity of
+/// other materials that they enclose. With -Y the interface triangles are not split, so the
+/// materials' meshes share them exactly and together form one conformal mesh.
+std::vector<TetgenInput> perMaterialSurfaces(const BoundarySurface& s,
+                                             const std::vector<double>& sizes) {
+  std::map<std::pair<uint16_t, uint16_t>, int> ids;
+  for (const auto& p : s.trianglePairs) ids.emplace(p, int(ids.size()) + 1);
+  int maxLabel = 0;
+  for (const auto& p : s.trianglePairs) maxLabel = std::max<int>(maxLabel, p.second);
+  const auto holes = s.delaunay->enclosedHolePoints();
+  std::vector<TetgenInput> inputs;
+  std::vector<int32_t> local(s.points.size(), -1);
+  for (int m = 1; m <= maxLabel; ++m) {
+    TetgenInput in;
+    in.label = m;
+    for (size_t t = 0; t < s.triangles.size(); ++t) {
+      const auto& pr = s.trianglePairs[t];
+      if (pr.first != m && pr.second != m) continue;
+      std::array<int32_t, 3> tri;
+      for (int k = 0; k < 3; ++k) {
+        const int32_t g = s.triangles[t][k];
+        if (local[g] < 0) {
+          local[g] = int32_t(in.points.size());
+          in.points.push_back(s.points[g]);
+          in.globalId.push_back(g);
+          if (sizes.size() == s.points.size()) in.sizes.push_back(sizes[g]);
+        }
+        tri[k] = local[g];
+      }
+      in.triangles.push_back(tri);
+      in.markers.push_back(ids[pr]);
+    }
+    for (int32_t g : in.globalId) local[g] = -1;
+    if (in.triangles.empty()) continue;
+    if (size_t(m) < holes.size()) in.holes = holes[size_t(m)];
+    inputs.push_back(std::move(in));
+  }
+  return inputs;
+}
+
+/// Labels the tets of one whole-surface TetGen run: per region a volume-weighted vote of the
+/// labelled Delaunay tets at the tets' centroids (without region attributes, per tet).
+std::vector<int> voteLabels(const TetgenOutput& out, const std::vector<Vec3>& pts,
+                            const LabelledDelaunay& delaunay, size_t& regions, RunContext& ctx) {
+  const int nt = int(out.tets.size() / 4);
+  const bool hasRegions = !out.regions.empty();
+  std::map<int, std::map<int, double>> votes;
+  std::map<int, int> sampled;
+  std::vector<int> tetLabel(size_t(nt), -1);
+  for (int t = 0; t < nt; ++t) {
+    const int32_t* T = &out.tets[4 * size_t(t)];
+    const int r = hasRegions ? int(std::lround(out.regions[size_t(t)])) : -1 - t;
+    if (hasRegions && sampled[r] >= 400) continue;
+    const Vec3 c{(pts[T[0]][0] + pts[T[1]][0] + pts[T[2]][0] + pts[T[3]][0]) / 4,
+                 (pts[T[0]][1] + pts[T[1]][1] + pts[T[2]][1] + pts[T[3]][1]) / 4,
+                 (pts[T[0]][2] + pts[T[1]][2] + pts[T[2]][2] + pts[T[3]][2]) / 4};
+    const int l = delaunay.labelAt(c);
+    if (hasRegions) {
+      ++sampled[r];
+      votes[r][l] += std::fabs(signedVolume(pts[T[0]], pts[T[1]], pts[T[2]], pts[T[3]]));
+    } else {
+      tetLabel[size_t(t)] = l;
+    }
+    if ((t & 0xFFFF) == 0) ctx.checkCancel();
+  }
+  regions = hasRegions ? votes.size() : 0;
+  if (!hasRegions) return tetLabel;
+  std::map<int, int> regionLabel;
+  for (const auto& [r, v] : votes) {
+    int best = 0;
+    double bestW = -1;
+    for (const auto& [l, w] : v)
+      if (w > bestW) {
+        bestW = w;
+        best = l;
+      }
+    regionLabel[r] = best;
+  }
+  for (int t = 0; t < nt; ++t)
+    tetLabel[size_t(t)] = regionLabel[int(std::lround(out.regions[size_t(t)]))];
+  return tetLabel;
+}
+
+/// Appends TetGen's tets of `label` (or of every label but 0 when labels are per tet) to the
+/// result: the input's points keep their surface index, TetGen's new points are appended.
+/// Returns false when TetGen renumbered the input points (then the job cannot be merged).
+bool appendTets(const TetgenInput& in, const TetgenOutput& out, const std::vector<int>* tetLabels,
+                VolumeMeshResult& result, std::vector<int32_t>& globalOfPoint) {
+  const size_t np = out.points.size() / 3;
+  if (np < in.points.size()) return false;
+  for (size_t i = 0; i < in.points.size(); ++i)
+    if (out.points[3 * i] != in.points[i][0] || out.points[3 * i + 1] != in.points[i][1] ||
+        out.points[3 * i + 2] != in.points[i][2])
+      return false;
+  std::vector<int32_t> id(np, -1);
+  for (size_t i = 0; i < in.points.size(); ++i) id[i] = in.globalId[i];
+  const size_t nt = out.tets.size() / 4;
+  for (size_t t = 0; t < nt; ++t) {
+    const int l = tetLabels ? (*tetLabels)[t] : in.label;
+    if (l == 0) {
+      ++result.droppedCavityTets;
+      continue;
+    }
+    std::array<int32_t, 4> T;
+    for (int k = 0; k < 4; ++k) {
+      const int v = out.tets[4 * t + size_t(k)];
+      if (id[size_t(v)] < 0) {  // a Steiner point of this job
+        id[size_t(v)] = int32_t(globalOfPoint.size());
+        globalOfPoint.push_back(-1);
+        result.points.push_back({out.points[3 * size_t(v)], out.points[3 * size_t(v) + 1],
+                                 out.points[3 * size_t(v) + 2]});
+      }
+      T[k] = id[size_t(v)];
+    }
+    result.tets.push_back(T);
+    result.labels.push_back(l);
   }
   return true;
+}
+
+/// Keeps only the points that tets use, renumbers, and orients every tet positively.
+void compactAndOrient(VolumeMeshResult& r) {
+  std::vector<int32_t> newId(r.points.size(), -1);
+  std::vector<Vec3> pts;
+  for (auto& T : r.tets) {
+    for (auto& v : T) {
+      if (newId[size_t(v)] < 0) {
+        newId[size_t(v)] = int32_t(pts.size());
+        pts.push_back(r.points[size_t(v)]);
+      }
+      v = newId[size_t(v)];
+    }
+    if (signedVolume(pts[T[0]], pts[T[1]], pts[T[2]], pts[T[3]]) < 0) std::swap(T[2], T[3]);
+  }
+  r.points.swap(pts);
 }
 
 }  // namespace
@@ -224,93 +451,88 @@ VolumeMeshResult buildVolumeMesh(const BoundarySurface& s, const VolumeMeshParam
     base << "q" << params.maxRadiusEdgeRatio;
     if (params.minDihedralAngle > 0) base << "/" << params.minDihedralAngle;
   }
-  base << "A";
-  if (params.pointSizes.size() == s.points.size() && params.usePointSizes) base << "m";
+  const bool sized = params.pointSizes.size() == s.points.size() && params.usePointSizes;
+  const std::vector<double> noSizes;
+  const std::vector<double>& sizes = sized ? params.pointSizes : noSizes;
+  if (sized) base << "m";
   if (params.maxTetVolume > 0) base << "a" << params.maxTetVolume;
   base << "O" << params.optimizationLevel;
   // Guard against run-away refinement: at most 40 Steiner points per surface vertex + 1M.
   base << "S" << (40 * s.points.size() + 1000000);
+  const int threads = resolveThreads(ctx.threads());
 
+  // 1. One TetGen run per material, side by side (interfaces kept, so they fit together).
+  if (params.preserveInterfaces && params.perMaterial && s.delaunay) {
+    const std::string switches = base.str() + "Y";
+    std::vector<TetgenInput> inputs = perMaterialSurfaces(s, sizes);
+    std::sort(inputs.begin(), inputs.end(), [](const TetgenInput& a, const TetgenInput& b) {
+      if (a.triangles.size() != b.triangles.size()) return a.triangles.size() > b.triangles.size();
+      return a.label < b.label;
+    });
+    auto jobs = runTetgenJobs(inputs, switches, threads, ctx, 0.0, 0.9);
+    std::string failure;
+    for (size_t j = 0; j < jobs.size() && failure.empty(); ++j)
+      if (!jobs[j].ok)
+        failure = "material " + std::to_string(inputs[j].label) + ": " + jobs[j].error;
+    if (failure.empty()) {
+      // Merge in label order (the run order above only serves the scheduling).
+      std::vector<size_t> order(inputs.size());
+      for (size_t j = 0; j < order.size(); ++j) order[j] = j;
+      std::sort(order.begin(), order.end(),
+                [&](size_t a, size_t b) { return inputs[a].label < inputs[b].label; });
+      result.points = s.points;
+      std::vector<int32_t> globalOfPoint(s.points.size());
+      for (size_t j : order) {
+        if (!appendTets(inputs[j], jobs[j].out, nullptr, result, globalOfPoint)) {
+          failure = "TetGen renumbered the surface points of material " +
+                    std::to_string(inputs[j].label);
+          break;
+        }
+        result.holePoints += inputs[j].holes.size();
+      }
+    }
+    if (failure.empty()) {
+      compactAndOrient(result);
+      result.switches = switches;
+      result.method = "tetgen";
+      result.tetgenRuns = inputs.size();
+      result.regions = inputs.size();
+      ctx.progress(1.0);
+      return result;
+    }
+    ctx.warn("Volume meshing per material with TetGen switches '" + switches + "' failed (" +
+             failure + "); the whole surface is meshed at once instead.");
+    result = VolumeMeshResult{};
+  }
+
+  // 2. The whole surface at once; TetGen numbers the regions, the labelled Delaunay names them.
+  const TetgenInput whole = wholeSurface(s, sizes);
   std::vector<std::pair<std::string, std::string>> attempts;
-  if (params.preserveInterfaces) attempts.emplace_back(base.str() + "Y", "tetgen");
-  attempts.emplace_back(base.str(), params.preserveInterfaces ? "tetgen-without-Y" : "tetgen");
-
+  if (params.preserveInterfaces) attempts.emplace_back(base.str() + "AY", "tetgen");
+  attempts.emplace_back(base.str() + "A", params.preserveInterfaces ? "tetgen-without-Y" : "tetgen");
   for (const auto& [switches, method] : attempts) {
     ctx.checkCancel();
-    TetgenOutput out;
-    std::string error;
-    if (!runTetgenCancelable(s, params.pointSizes, switches, out, error, ctx)) {
-      ctx.warn("Volume meshing with TetGen switches '" + switches + "' failed: " + error + ".");
+    auto jobs = runTetgenJobs({whole}, switches, 1, ctx, 0.0, 0.7);
+    if (!jobs[0].ok) {
+      ctx.warn("Volume meshing with TetGen switches '" + switches + "' failed: " + jobs[0].error + ".");
       continue;
     }
-    ctx.progress(0.7);
-    ctx.checkCancel();
-    const int nt = int(out.tets.size() / 4);
-    const bool hasRegions = !out.regions.empty();
+    const TetgenOutput& out = jobs[0].out;
     std::vector<Vec3> pts(out.points.size() / 3);
     for (size_t i = 0; i < pts.size(); ++i)
       pts[i] = {out.points[3 * i], out.points[3 * i + 1], out.points[3 * i + 2]};
-    // Label: per region a volume-weighted vote of the Delaunay labels at tet centroids.
-    std::vector<int> region(nt, 0);
-    if (hasRegions)
-      for (int t = 0; t < nt; ++t)
-        region[t] = int(std::lround(out.regions[t]));
-    std::map<int, std::map<int, double>> votes;
-    std::map<int, int> sampled;
-    std::vector<int> tetLabel(nt, -1);
-    for (int t = 0; t < nt; ++t) {
-      const int32_t* T = &out.tets[4 * size_t(t)];
-      const int r = hasRegions ? region[t] : -1 - t;
-      if (hasRegions && sampled[r] >= 400) continue;
-      const Vec3 c{(pts[T[0]][0] + pts[T[1]][0] + pts[T[2]][0] + pts[T[3]][0]) / 4,
-                   (pts[T[0]][1] + pts[T[1]][1] + pts[T[2]][1] + pts[T[3]][1]) / 4,
-                   (pts[T[0]][2] + pts[T[1]][2] + pts[T[2]][2] + pts[T[3]][2]) / 4};
-      const int l = s.delaunay->labelAt(c);
-      if (hasRegions) {
-        ++sampled[r];
-        votes[r][l] += std::fabs(signedVolume(pts[T[0]], pts[T[1]], pts[T[2]], pts[T[3]]));
-      } else {
-        tetLabel[t] = l;
-      }
-      if ((t & 0xFFFF) == 0) ctx.checkCancel();
-    }
-    std::map<int, int> regionLabel;
-    for (const auto& [r, v] : votes) {
-      int best = 0;
-      double bestW = -1;
-      for (const auto& [l, w] : v)
-        if (w > bestW) {
-          bestW = w;
-          best = l;
-        }
-      regionLabel[r] = best;
-    }
-    result.regions = hasRegions ? votes.size() : 0;
-    // Keep material tets, re-index points.
-    std::vector<int32_t> newId(pts.size(), -1);
-    for (int t = 0; t < nt; ++t) {
-      const int l = hasRegions ? regionLabel[region[t]] : tetLabel[t];
-      if (l == 0) {
-        ++result.droppedCavityTets;
-        continue;
-      }
-      std::array<int32_t, 4> T;
-      for (int k = 0; k < 4; ++k) {
-        const int v = out.tets[4 * size_t(t) + k];
-        if (newId[v] < 0) {
-          newId[v] = int32_t(result.points.size());
-          result.points.push_back(pts[v]);
-        }
-        T[k] = newId[v];
-      }
-      if (signedVolume(result.points[T[0]], result.points[T[1]], result.points[T[2]],
-                       result.points[T[3]]) < 0)
-        std::swap(T[2], T[3]);
-      result.tets.push_back(T);
-      result.labels.push_back(l);
-    }
+    const std::vector<int> labels = voteLabels(out, pts, *s.delaunay, result.regions, ctx);
+    // Without Y TetGen may add points on the surface: take its point list as it is.
+    TetgenInput all = whole;
+    all.points.assign(pts.begin(), pts.begin() + std::ptrdiff_t(std::min(pts.size(), whole.points.size())));
+    std::vector<int32_t> globalOfPoint;
+    result.points = all.points;
+    globalOfPoint.resize(result.points.size());
+    appendTets(all, out, &labels, result, globalOfPoint);
+    compactAndOrient(result);
     result.switches = switches;
     result.method = method;
+    result.tetgenRuns = 1;
     if (method == "tetgen-without-Y")
       ctx.warn("Interface triangles were split by TetGen (switch Y dropped); the mesh is still "
                "conformal but interfaces have extra vertices.");

@@ -2,6 +2,10 @@
 #pragma once
 /// \file VolumeMesh.h
 /// Stage 9 ("Volume Meshing"): TetGen 1.5 on the multi-material interface surface.
+/// By default each material is meshed on its own (its interface triangles, holes in the cavities
+/// of other materials it encloses), several TetGen runs side by side in child processes; the
+/// runs share the unsplit interface triangles, so the result is one conformal mesh. Otherwise, or
+/// if a run fails: the whole surface at once.
 /// Input PLC: the interface triangles (each shared triangle once, facet marker = interface id);
 /// switches p (PLC), q (radius-edge / min dihedral bound), A (region attributes: TetGen numbers
 /// the enclosed regions itself), Y (no Steiner points on the interfaces, so they stay exactly the
@@ -31,6 +35,11 @@ struct VolumeMeshParameters {
   /// interior follows the sizing field; empty = none.
   std::vector<double> pointSizes;
   bool usePointSizes = true;
+  /// With preserveInterfaces: mesh each material's closed boundary in its own TetGen run (up to
+  /// RunContext::threads() at a time, each in a child process; cavities of other materials are
+  /// holes). The interface triangles are not split, so the pieces share them exactly. If a run
+  /// fails, the whole surface is meshed at once as below.
+  bool perMaterial = true;
 };
 
 struct VolumeMeshResult {
@@ -41,6 +50,8 @@ struct VolumeMeshResult {
   std::string switches;          ///< TetGen switches actually used ("" for the Delaunay fallback)
   std::string method;            ///< "tetgen", "tetgen-without-Y" or "delaunay-fallback"
   size_t regions = 0, droppedCavityTets = 0;
+  size_t tetgenRuns = 0;   ///< TetGen problems solved (one per material, or 1)
+  size_t holePoints = 0;   ///< cavity points handed to the per-material runs
 };
 
 VolumeMeshResult buildVolumeMesh(const BoundarySurface& surface, const VolumeMeshParameters& params,
