@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
+#include <femesher/SpatialHash.h>
 #include <femesher/Status.h>
 #include <femesher/stages/BoundaryMesh.h>
 
@@ -64,16 +65,27 @@ void LabelledDelaunay::adjacency(size_t n, std::vector<uint32_t>& offsets,
 }
 
 std::vector<std::vector<Vec3>> LabelledDelaunay::enclosedHolePoints() const {
-  const Delaunay& dt = impl->dt;
+  Delaunay& dt = impl->dt;
   const int nLabels = impl->labels + 1;
   // Regions: connected sets of same-label cells (the infinite cells, label 0, join the outside).
+  // Each cell's info holds its index while this runs (the labels are kept aside and restored).
   std::vector<Delaunay::Cell_handle> cells;
   cells.reserve(dt.number_of_cells());
   for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c) cells.push_back(c);
-  std::unordered_map<const void*, uint32_t> index;
-  index.reserve(cells.size());
-  for (size_t i = 0; i < cells.size(); ++i) index.emplace(&*cells[i], uint32_t(i));
-  auto labelOf = [&](Delaunay::Cell_handle c) { return dt.is_infinite(c) ? 0 : c->info(); };
+  std::vector<int32_t> info(cells.size()), cellLabel(cells.size());
+  for (size_t i = 0; i < cells.size(); ++i) {
+    info[i] = cells[i]->info();
+    cellLabel[i] = dt.is_infinite(cells[i]) ? 0 : info[i];
+    cells[i]->info() = int32_t(i);
+  }
+  struct Restore {
+    const std::vector<Delaunay::Cell_handle>& cells;
+    const std::vector<int32_t>& info;
+    ~Restore() {
+      for (size_t i = 0; i < cells.size(); ++i) cells[i]->info() = info[i];
+    }
+  } restore{cells, info};
+  auto indexOf = [](Delaunay::Cell_handle c) { return uint32_t(c->info()); };
   constexpr uint32_t kNone = ~0u;
   std::vector<uint32_t> region(cells.size(), kNone);
   std::vector<uint32_t> representative;  // a finite cell of the region, or kNone
@@ -83,7 +95,7 @@ std::vector<std::vector<Vec3>> LabelledDelaunay::enclosedHolePoints() const {
   for (size_t seed = 0; seed < cells.size(); ++seed) {
     if (region[seed] != kNone) continue;
     const uint32_t r = uint32_t(regionLabel.size());
-    const int l = labelOf(cells[seed]);
+    const int l = cellLabel[seed];
     regionLabel.push_back(l);
     representative.push_back(kNone);
     outside.push_back(0);
@@ -97,8 +109,8 @@ std::vector<std::vector<Vec3>> LabelledDelaunay::enclosedHolePoints() const {
       else if (representative[r] == kNone) representative[r] = ci;
       for (int k = 0; k < 4; ++k) {
         const auto n = c->neighbor(k);
-        const uint32_t ni = index.at(&*n);
-        if (region[ni] != kNone || labelOf(n) != l) continue;
+        const uint32_t ni = indexOf(n);
+        if (region[ni] != kNone || cellLabel[ni] != l) continue;
         region[ni] = r;
         stack.push_back(ni);
       }
@@ -108,7 +120,7 @@ std::vector<std::vector<Vec3>> LabelledDelaunay::enclosedHolePoints() const {
   std::vector<std::pair<uint32_t, uint32_t>> edges;
   for (size_t i = 0; i < cells.size(); ++i)
     for (int k = 0; k < 4; ++k) {
-      const uint32_t j = index.at(&*cells[i]->neighbor(k));
+      const uint32_t j = indexOf(cells[i]->neighbor(k));
       if (region[i] < region[j]) edges.emplace_back(region[i], region[j]);
     }
   std::sort(edges.begin(), edges.end());
@@ -232,12 +244,41 @@ struct Candidate {
   double exclusion;
 };
 
+/// Indices of `points` in Z-order (Morton order on a grid of `cell`): neighbours in the list are
+/// near in space, so walks from one to the next in the triangulation are short.
+std::vector<uint32_t> mortonOrder(const std::vector<Vec3>& points, double cell) {
+  Vec3 lo{1e300, 1e300, 1e300};
+  for (const auto& p : points)
+    for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], p[a]);
+  auto spread = [](uint64_t x) {  // 21 bits -> every third bit
+    x &= 0x1FFFFF;
+    x = (x | x << 32) & 0x1F00000000FFFFull;
+    x = (x | x << 16) & 0x1F0000FF0000FFull;
+    x = (x | x << 8) & 0x100F00F00F00F00Full;
+    x = (x | x << 4) & 0x10C30C30C30C30C3ull;
+    x = (x | x << 2) & 0x1249249249249249ull;
+    return x;
+  };
+  std::vector<std::pair<uint64_t, uint32_t>> keyed(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    uint64_t code = 0;
+    for (int a = 0; a < 3; ++a)
+      code |= spread(uint64_t(std::max(0.0, (points[i][a] - lo[a]) / cell))) << a;
+    keyed[i] = {code, uint32_t(i)};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<uint32_t> order(points.size());
+  for (size_t i = 0; i < keyed.size(); ++i) order[i] = keyed[i].second;
+  return order;
+}
+
 /// Inserts the candidates with a non-zero deviation greedily, largest deviation first (ties by
 /// position, so the order does not depend on threads): a candidate closer than its exclusion
-/// radius to an already inserted candidate or to any vertex of the triangulation is skipped.
-/// Returns the new vertices (info = kRefinementPoint).
+/// radius to an already accepted candidate, or to a vertex of the triangulation's cell that
+/// holds it or of that cell's neighbours, is skipped. The accepted ones go in in Z-order (short
+/// walks). Returns the new vertices (info = kRefinementPoint).
 std::vector<Delaunay::Vertex_handle> insertCandidates(Delaunay& dt, std::vector<Candidate> cand,
-                                                      double cell) {
+                                                      double cell, int threads) {
   cand.erase(std::remove_if(cand.begin(), cand.end(),
                             [](const Candidate& c) { return c.deviation == 0; }),
              cand.end());
@@ -245,43 +286,68 @@ std::vector<Delaunay::Vertex_handle> insertCandidates(Delaunay& dt, std::vector<
     if (x.deviation != y.deviation) return x.deviation > y.deviation;
     return x.point < y.point;
   });
+  std::vector<Vec3> pts(cand.size());
+  for (size_t i = 0; i < cand.size(); ++i) pts[i] = cand[i].point;
+  const std::vector<uint32_t> spatial = mortonOrder(pts, cell);
 
-  std::unordered_map<uint64_t, std::vector<Vec3>> grid;
-  auto key = [](int64_t x, int64_t y, int64_t z) {
-    return (uint64_t(x & 0x1FFFFF) << 42) | (uint64_t(y & 0x1FFFFF) << 21) | uint64_t(z & 0x1FFFFF);
-  };
+  // 1. Too close to a vertex already there (read-only point location, in parallel).
+  std::vector<char> nearVertex(cand.size(), 0);
+  parallelFor(spatial.size(), threads, [&](size_t b, size_t e, int) {
+    Delaunay::Cell_handle hint;
+    for (size_t q = b; q < e; ++q) {
+      const Candidate& c = cand[spatial[q]];
+      const Point pt(c.point[0], c.point[1], c.point[2]);
+      hint = dt.locate(pt, hint);
+      const double ex2 = c.exclusion * c.exclusion;
+      auto close = [&](Delaunay::Vertex_handle v) {
+        return !dt.is_infinite(v) && CGAL::squared_distance(v->point(), pt) < ex2;
+      };
+      bool near = false;
+      for (int k = 0; k < 4 && !near; ++k) {
+        near = close(hint->vertex(k));
+        const auto n = hint->neighbor(k);
+        near = near || close(n->vertex(n->index(hint)));
+      }
+      nearVertex[spatial[q]] = near;
+    }
+  });
+  // 2. Greedy among the candidates, largest deviation first.
+  Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  double maxExclusion = 0;
+  for (const Candidate& c : cand) {
+    maxExclusion = std::max(maxExclusion, c.exclusion);
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::min(lo[a], c.point[a]);
+      hi[a] = std::max(hi[a], c.point[a]);
+    }
+  }
+  PointGrid grid(lo, hi, std::max(cell, 0.5 * maxExclusion), cand.size() / 4 + 1);
+  std::vector<char> accepted(cand.size(), 0);
+  for (size_t i = 0; i < cand.size(); ++i) {
+    if (nearVertex[i]) continue;
+    const Candidate& c = cand[i];
+    bool close = false;
+    grid.forEachNear(c.point, c.exclusion, [&](uint32_t j) {
+      const Vec3& q = cand[j].point;
+      const double dx = q[0] - c.point[0], dy = q[1] - c.point[1], dz = q[2] - c.point[2];
+      close = close || dx * dx + dy * dy + dz * dz < c.exclusion * c.exclusion;
+    });
+    if (close) continue;
+    accepted[i] = 1;
+    grid.insert(uint32_t(i), c.point);
+  }
+  // 3. Insert in Z-order.
   std::vector<Delaunay::Vertex_handle> fresh;
   Delaunay::Cell_handle hint;
-  for (const Candidate& c : cand) {
-    const int64_t cx = int64_t(std::floor(c.point[0] / cell)),
-                  cy = int64_t(std::floor(c.point[1] / cell)),
-                  cz = int64_t(std::floor(c.point[2] / cell));
-    const int64_t r = int64_t(std::ceil(c.exclusion / cell));
-    bool close = false;
-    for (int64_t x = cx - r; x <= cx + r && !close; ++x)
-      for (int64_t y = cy - r; y <= cy + r && !close; ++y)
-        for (int64_t z = cz - r; z <= cz + r && !close; ++z) {
-          auto it = grid.find(key(x, y, z));
-          if (it == grid.end()) continue;
-          for (const Vec3& q : it->second) {
-            const double dx = q[0] - c.point[0], dy = q[1] - c.point[1], dz = q[2] - c.point[2];
-            if (dx * dx + dy * dy + dz * dz < c.exclusion * c.exclusion) {
-              close = true;
-              break;
-            }
-          }
-        }
-    if (close) continue;
-    const Point pt(c.point[0], c.point[1], c.point[2]);
-    const auto nv = dt.nearest_vertex(pt, hint);
-    if (CGAL::squared_distance(nv->point(), pt) < c.exclusion * c.exclusion) continue;
+  for (uint32_t i : spatial) {
+    if (!accepted[i]) continue;
+    const Point pt(cand[i].point[0], cand[i].point[1], cand[i].point[2]);
     const size_t before = dt.number_of_vertices();
-    auto v = dt.insert(pt, nv->cell());
+    auto v = dt.insert(pt, hint);
     hint = v->cell();
     if (dt.number_of_vertices() == before) continue;
     v->info() = kRefinementPoint;
     fresh.push_back(v);
-    grid[key(cx, cy, cz)].push_back(c.point);
   }
   return fresh;
 }
@@ -433,7 +499,7 @@ size_t refineFacetDistance(const IndicatorField& field, Delaunay& dt, double del
     const size_t tooFar = size_t(std::count_if(cand.begin(), cand.end(),
                                                [](const Candidate& c) { return c.deviation != 0; }));
     if (tooFar == 0) break;
-    fresh = insertCandidates(dt, std::move(cand), smin);
+    fresh = insertCandidates(dt, std::move(cand), smin, threads);
     const size_t roundInserted = fresh.size();
     inserted += roundInserted;
     ctx.debug("Facet-distance refinement round " + std::to_string(round) + ": " +
@@ -532,7 +598,7 @@ size_t refineVoxelCentres(const IndicatorField& field, Delaunay& dt, RunContext&
     }, chunks);
     ctx.checkCancel();
     const size_t nWrong = size_t(std::count(wrong.begin(), wrong.end(), 1));
-    const auto fresh = insertCandidates(dt, std::move(cand), smin);
+    const auto fresh = insertCandidates(dt, std::move(cand), smin, threads);
     ctx.debug("Voxel-centre refinement round " + std::to_string(round) + ": " +
               std::to_string(voxels.size()) + " of " + std::to_string(allVoxels) +
               " boundary voxels checked, " + std::to_string(nWrong) +
@@ -659,7 +725,7 @@ size_t refineJunctionEdges(const IndicatorField& field, Delaunay& dt, const Junc
     });
     ctx.checkCancel();
     const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
-    const auto fresh = insertCandidates(dt, std::move(cand), smin);
+    const auto fresh = insertCandidates(dt, std::move(cand), smin, threads);
     ctx.debug("Junction refinement round " + std::to_string(round) + ": " +
               std::to_string(off.size()) + " junction particles not on a triple edge, " +
               std::to_string(fresh.size()) + " line points inserted");

@@ -47,6 +47,8 @@ class LabelledDelaunay {
   /// hold m's tets only. A region is a connected set of tets of labels other than m (joined
   /// through faces that are not m's interface); those reaching the convex hull are not enclosed.
   /// Each point is the centroid of a tet of the region (strictly inside it). Canonical mm.
+  /// Uses the tets' label slots as scratch space while it runs: do not call it concurrently with
+  /// labelAt() or anything else reading the triangulation.
   std::vector<std::vector<Vec3>> enclosedHolePoints() const;
   /// The labelled tets themselves (label != 0), canonical coordinates, compact labels.
   void exportTets(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,

@@ -15,6 +15,7 @@
 #include <vtkIdList.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <numeric>
 #include <unordered_map>
@@ -29,6 +30,10 @@ SurfaceSamples sampleInterfaces(const IndicatorField& field, const LabelVolume& 
                                 const SurfaceSamplingParameters& params, RunContext& ctx) {
   const PreprocessedVolume& vol = field.volume();
   SurfaceSamples out;
+  const auto t0 = std::chrono::steady_clock::now();
+  auto seconds = [&] {
+    return std::to_string(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  };
 
   // --- Marching cubes on the label grid (VTK) ----------------------------------------------
   vtkNew<vtkImageData> image;
@@ -51,6 +56,7 @@ SurfaceSamples sampleInterfaces(const IndicatorField& field, const LabelVolume& 
   vtkPolyData* surface = mc->GetOutput();
   const vtkIdType nPts = surface->GetNumberOfPoints();
   out.isosurfaceTriangles = size_t(surface->GetNumberOfPolys());
+  ctx.debug("SurfaceSampling: marching cubes " + seconds() + " s");
 
   // --- Relocate every vertex onto the smooth interface --------------------------------------
   // Each vertex sits at the midpoint of a grid edge between two different labels.
@@ -95,6 +101,7 @@ SurfaceSamples sampleInterfaces(const IndicatorField& field, const LabelVolume& 
     }
   });
   ctx.progress(0.5);
+  ctx.debug("SurfaceSampling: vertices relocated " + seconds() + " s");
 
   // Deduplicate (both sides of an interface produce the same edge vertex).
   std::vector<uint32_t> order;
@@ -114,59 +121,64 @@ SurfaceSamples sampleInterfaces(const IndicatorField& field, const LabelVolume& 
     priority.push_back(mix64(uint64_t(edgeKey[id]) ^ mix64(params.seed)) >> 1);
   }
   ctx.progress(0.6);
+  ctx.debug("SurfaceSampling: deduplicated " + seconds() + " s");
 
   // --- Poisson-disk selection ----------------------------------------------------------------
-  auto sizeAt = [&](const Vec3& c) {
-    return params.sizing ? params.sizing(c) : params.targetEdgeLength;
-  };
-  auto canonical = [&](const SurfaceSample& s) { return vol.localToCanonical(s.local); };
-  std::vector<float> hs(out.all.size());
-  double hMax = 0;
-  for (size_t i = 0; i < out.all.size(); ++i) {
-    hs[i] = float(sizeAt(canonical(out.all[i])));
+  // Candidates in a seeded random order (junction-cell ones first) are kept when no kept sample
+  // of the same interface is closer than 0.75 x their mean size (0.4 x that for other
+  // interfaces). The sizing field is graded (h_j <= h_i + 0.4 d), so a conflicting neighbour is
+  // never farther than 0.375 (h_i + min(h_max, 2 h_i)).
+  const size_t nAll = out.all.size();
+  std::vector<Vec3> cpos(nAll);
+  std::vector<float> hs(nAll);
+  parallelFor(nAll, ctx.threads(), [&](size_t b, size_t e, int) {
+    for (size_t i = b; i < e; ++i) {
+      cpos[i] = vol.localToCanonical(out.all[i].local);
+      hs[i] = float(params.sizing ? params.sizing(cpos[i]) : params.targetEdgeLength);
+    }
+  });
+  double hMax = 1e-9;
+  Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  for (size_t i = 0; i < nAll; ++i) {
     hMax = std::max(hMax, double(hs[i]));
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::min(lo[a], cpos[i][a]);
+      hi[a] = std::max(hi[a], cpos[i][a]);
+    }
   }
-  const double r = 0.75 * std::max(hMax, 1e-9);  // grid cell: the largest radius
-  std::vector<uint32_t> idx(out.all.size());
+  std::vector<float> sortedH(hs);
+  std::nth_element(sortedH.begin(), sortedH.begin() + long(nAll / 2), sortedH.end());
+  const double hMedian = nAll ? double(sortedH[nAll / 2]) : 1.0;
+  std::vector<uint32_t> idx(nAll);
   std::iota(idx.begin(), idx.end(), 0u);
   std::sort(idx.begin(), idx.end(), [&](uint32_t a, uint32_t b) {
     if (out.all[a].junction != out.all[b].junction) return out.all[a].junction;
     return priority[a] < priority[b];
   });
-  std::unordered_map<CellKey, std::vector<uint32_t>, CellKeyHash> grid;
-  grid.reserve(out.all.size() / 4 + 16);
+  PointGrid grid(lo, hi, 0.75 * hMedian, nAll / 8 + 1);
   size_t processed = 0;
   for (uint32_t i : idx) {
-    if ((++processed & 0xFFFF) == 0) ctx.progress(0.6 + 0.35 * double(processed) / idx.size());
+    if ((++processed & 0xFFFF) == 0) ctx.progress(0.6 + 0.35 * double(processed) / double(nAll));
     const SurfaceSample& s = out.all[i];
-    const Vec3 c = canonical(s);
-    const CellKey key{int64_t(std::floor(c[0] / r)), int64_t(std::floor(c[1] / r)),
-                      int64_t(std::floor(c[2] / r))};
+    const Vec3& c = cpos[i];
+    const double reach = 0.375 * (double(hs[i]) + std::min(hMax, 2.0 * double(hs[i])));
     bool ok = true;
-    for (int dz = -1; dz <= 1 && ok; ++dz)
-      for (int dy = -1; dy <= 1 && ok; ++dy)
-        for (int dx = -1; dx <= 1 && ok; ++dx) {
-          auto it = grid.find({key.x + dx, key.y + dy, key.z + dz});
-          if (it == grid.end()) continue;
-          for (uint32_t j : it->second) {
-            const SurfaceSample& t = out.all[j];
-            const Vec3 d = canonical(t);
-            const double dist2 = (c[0] - d[0]) * (c[0] - d[0]) + (c[1] - d[1]) * (c[1] - d[1]) +
-                                 (c[2] - d[2]) * (c[2] - d[2]);
-            const bool same = s.a == t.a && s.b == t.b;
-            const double rij = 0.75 * 0.5 * (double(hs[i]) + double(hs[j]));
-            const double lim = same ? rij : 0.4 * rij;
-            if (dist2 < lim * lim) {
-              ok = false;
-              break;
-            }
-          }
-        }
+    grid.forEachNear(c, reach, [&](uint32_t j) {
+      if (!ok) return;
+      const SurfaceSample& t = out.all[j];
+      const Vec3& d = cpos[j];
+      const double dist2 = (c[0] - d[0]) * (c[0] - d[0]) + (c[1] - d[1]) * (c[1] - d[1]) +
+                           (c[2] - d[2]) * (c[2] - d[2]);
+      const bool same = s.a == t.a && s.b == t.b;
+      const double rij = 0.75 * 0.5 * (double(hs[i]) + double(hs[j]));
+      const double lim = same ? rij : 0.4 * rij;
+      if (dist2 < lim * lim) ok = false;
+    });
     if (!ok) continue;
-    grid[key].push_back(i);
+    grid.insert(i, c);
     out.selected.push_back(i);
   }
-
+  ctx.debug("SurfaceSampling: Poisson-disk selection " + seconds() + " s");
   // --- Preview: the selected samples per interface, in LPS ---------------------------------
   if (ctx.wantsPreview()) {
     auto snap = std::make_shared<PreviewSnapshot>();
@@ -181,7 +193,7 @@ SurfaceSamples sampleInterfaces(const IndicatorField& field, const LabelVolume& 
         it = groupOf.emplace(key, int32_t(snap->groups.size())).first;
         snap->groups.emplace_back(s.a == 0 ? kExteriorLabel : vol.userLabel[s.a], vol.userLabel[s.b]);
       }
-      const Vec3 p = input.canonicalToPhysical(canonical(s));
+      const Vec3 p = input.canonicalToPhysical(cpos[i]);
       snap->points.push_back({float(p[0]), float(p[1]), float(p[2])});
       snap->pointGroup.push_back(it->second);
     }
