@@ -132,6 +132,18 @@ const std::vector<Binding>& bindings() {
          "the whole surface.", true},
         [](MeshingParameters& p, double x) { p.volumePerMaterial = x != 0; },
         [](const MeshingParameters& p) { return p.volumePerMaterial ? 1.0 : 0.0; });
+    add({"optimize_min_dihedral", "double", "degrees", "", 0, 40, "Sliver removal target",
+         "After TetGen, tets whose smallest dihedral angle is below this are improved by edge and "
+         "face flips inside one material, interior-vertex smoothing and peeling of flat boundary "
+         "tets; interfaces between materials never change. 0 = off.", true},
+        [](MeshingParameters& p, double x) { p.optimizeMinDihedral = x; },
+        [](const MeshingParameters& p) { return p.optimizeMinDihedral; });
+    add({"sliver_peel_distance", "double", "voxels", "", 0, 1, "Boundary sliver peeling",
+         "A flat tet with two or three faces on the mesh's outer boundary (background or volume "
+         "box) is removed when it is thinner than this (voxels of the smallest spacing): the outer "
+         "surface moves by at most that much. 0 = never.", true},
+        [](MeshingParameters& p, double x) { p.sliverPeelDistance = x; },
+        [](const MeshingParameters& p) { return p.sliverPeelDistance; });
     add({"threads", "int", "", "", 0, 1024, "Threads", "Worker threads; 0 = all cores.", true},
         [](MeshingParameters& p, double x) { p.threads = int(x); },
         [](const MeshingParameters& p) { return double(p.threads); });

@@ -88,6 +88,14 @@ struct MeshingParameters {
   /// several cores; the runs share the unsplit interface triangles, so the mesh is conformal).
   bool volumePerMaterial = true;
 
+  // --- Optimisation (after TetGen) -----------------------------------------------------------
+  /// Tets with a minimum dihedral angle below this (degrees) are improved by flips inside one
+  /// material, interior-vertex smoothing and peeling (see stages/Optimize.h). 0 = off.
+  double optimizeMinDihedral = 15.0;
+  /// Flat tets with two or three faces on the outer boundary are removed when thinner than this,
+  /// in voxels of the smallest spacing (the outer boundary moves by at most that). 0 = never.
+  double sliverPeelDistance = 0.1;
+
   // --- Run ------------------------------------------------------------------------------------
   int threads = 0;     ///< 0 = all cores
   uint64_t seed = 1;   ///< random seed (sampling order); same seed + threads = same mesh

@@ -7,6 +7,7 @@
 #include <femesher/stages/LabelPreprocess.h>
 #include <femesher/stages/LocalDelaunay.h>
 #include <femesher/stages/MedialAxis.h>
+#include <femesher/stages/Optimize.h>
 #include <femesher/stages/SizingField.h>
 #include <femesher/stages/ParticleSystem.h>
 #include <femesher/stages/SurfaceSampling.h>
@@ -131,7 +132,7 @@ std::vector<std::pair<std::string, double>> pipelineStagePlan(const MeshingParam
       {"LabelPreprocess", 2}, {"IndicatorFunctions", 10}, {"MedialAxis", 6},
       {"SizingField", 4},     {"SurfaceSampling", 8},     {"Junctions", 5},
       {"ParticleSystem", 18}, {"BoundaryMesh", 10},       {"VolumeMesh", 28},
-      {"Quality", 3}};
+      {"Optimize", 3},        {"Quality", 3}};
   if (params.sizing != "adaptive")
     plan.erase(std::remove_if(plan.begin(), plan.end(),
                               [](const auto& p) {
@@ -346,6 +347,20 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
       vm = buildVolumeMesh(surface, vp, ctx);
       st.done();
     }
+    // 6. Sliver removal (interfaces between materials kept).
+    OptimizeResult opt;
+    {
+      StageScope st(ctx, result.timings, "Optimize");
+      OptimizeParameters op;
+      op.targetMinDihedral = params.optimizeMinDihedral;
+      op.peelDistance = params.sliverPeelDistance *
+                        std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+      opt = optimizeTetMesh(vm.points, vm.tets, vm.labels, op, ctx);
+      ctx.debug("Optimize: " + std::to_string(opt.tetsBelowTargetBefore) + " -> " +
+                std::to_string(opt.tetsBelowTargetAfter) + " tets below target, min dihedral " +
+                std::to_string(opt.minDihedralBefore) + " -> " + std::to_string(opt.minDihedralAfter));
+      st.done();
+    }
     // To LPS and user labels. A left-handed direction flips orientation: swap two vertices.
     TetMesh& mesh = result.mesh;
     mesh.points.resize(vm.points.size());
@@ -433,6 +448,17 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
                      {"ldt_triple_line_links", double(ldt.lineLinks)},
                      {"ldt_triple_line_open_ends", double(ldt.lineEnds)},
                      {"ldt_used", ldtUsed ? 1.0 : 0.0},
+                     {"optimize_tets_below_target_before", double(opt.tetsBelowTargetBefore)},
+                     {"optimize_tets_below_target_after", double(opt.tetsBelowTargetAfter)},
+                     {"optimize_tets_below_5deg_before", double(opt.tetsBelow5Before)},
+                     {"optimize_tets_below_5deg_after", double(opt.tetsBelow5After)},
+                     {"optimize_min_dihedral_before", opt.minDihedralBefore},
+                     {"optimize_min_dihedral_after", opt.minDihedralAfter},
+                     {"optimize_edge_removals", double(opt.edgeRemovals)},
+                     {"optimize_face_flips", double(opt.faceFlips)},
+                     {"optimize_smoothed_vertices", double(opt.smoothedVertices)},
+                     {"optimize_peeled_tets", double(opt.peeledTets)},
+                     {"optimize_passes", double(opt.passes)},
                      {"vertices", double(mesh.points.size())},
                      {"tets", double(mesh.tets.size())}};
     result.warnings = ctx.warnings();

@@ -1,0 +1,547 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/RunContext.h>
+#include <femesher/stages/Optimize.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+namespace femesher {
+
+namespace {
+
+constexpr double kRadToDeg = 57.29577951308232;
+constexpr double kEps = 1e-6;  // degrees: smallest improvement that counts
+
+Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+Vec3 cross(const Vec3& a, const Vec3& b) {
+  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
+
+/// Mutable tet mesh with vertex -> tet incidence; faces are found by intersecting incidences.
+class Editor {
+ public:
+  Editor(std::vector<Vec3>& p, std::vector<std::array<int32_t, 4>>& t, std::vector<int32_t>& l)
+      : pts(p), tets(t), labels(l), alive(t.size(), 1), around(p.size()),
+        fixedState(p.size(), -1) {
+    for (size_t i = 0; i < tets.size(); ++i)
+      for (int32_t v : tets[i]) around[size_t(v)].push_back(uint32_t(i));
+    for (int32_t l : labels) {
+      if (size_t(l) >= perLabel.size()) perLabel.resize(size_t(l) + 1, 0);
+      ++perLabel[size_t(l)];
+    }
+  }
+
+  std::vector<Vec3>& pts;
+  std::vector<std::array<int32_t, 4>>& tets;
+  std::vector<int32_t>& labels;
+  std::vector<char> alive;
+  std::vector<std::vector<uint32_t>> around;  // alive tets per vertex
+  std::vector<int8_t> fixedState;             // -1 unknown, 0 free, 1 on a boundary/interface
+  std::vector<size_t> perLabel;
+
+  double quality(uint32_t t) const {
+    const auto& T = tets[t];
+    return tetMinDihedral(pts[size_t(T[0])], pts[size_t(T[1])], pts[size_t(T[2])], pts[size_t(T[3])]);
+  }
+  double quality(const std::array<int32_t, 4>& T) const {
+    return tetMinDihedral(pts[size_t(T[0])], pts[size_t(T[1])], pts[size_t(T[2])], pts[size_t(T[3])]);
+  }
+  bool has(uint32_t t, int32_t v) const {
+    const auto& T = tets[t];
+    return T[0] == v || T[1] == v || T[2] == v || T[3] == v;
+  }
+  /// Alive tets holding both u and v.
+  void tetsOnEdge(int32_t u, int32_t v, std::vector<uint32_t>& out) const {
+    out.clear();
+    for (uint32_t t : around[size_t(u)])
+      if (has(t, v)) out.push_back(t);
+  }
+  /// The other tet holding face (a, b, c) of tet t, or -1 (outer boundary).
+  int64_t across(uint32_t t, int32_t a, int32_t b, int32_t c) const {
+    for (uint32_t s : around[size_t(a)])
+      if (s != t && has(s, b) && has(s, c)) return int64_t(s);
+    return -1;
+  }
+  /// Face k of tet t (the three vertices other than T[k]).
+  std::array<int32_t, 3> face(uint32_t t, int k) const {
+    const auto& T = tets[t];
+    std::array<int32_t, 3> f;
+    int n = 0;
+    for (int i = 0; i < 4; ++i)
+      if (i != k) f[size_t(n++)] = T[size_t(i)];
+    return f;
+  }
+  /// A face is constrained when it is on the outer boundary or between two materials.
+  bool constrained(uint32_t t, int k) const {
+    const auto f = face(t, k);
+    const int64_t s = across(t, f[0], f[1], f[2]);
+    return s < 0 || labels[size_t(s)] != labels[t];
+  }
+  /// A vertex is fixed when a constrained face holds it (cached: peeling and flips never free a
+  /// fixed vertex nor fix a free one, see the operations).
+  bool fixedVertex(int32_t v) {
+    int8_t& st = fixedState[size_t(v)];
+    if (st >= 0) return st == 1;
+    st = 0;
+    for (uint32_t t : around[size_t(v)])
+      for (int k = 0; k < 4 && st == 0; ++k)
+        if (tets[t][size_t(k)] != v && constrained(t, k)) st = 1;
+    return st == 1;
+  }
+  void kill(uint32_t t) {
+    alive[t] = 0;
+    --perLabel[size_t(labels[t])];
+    for (int32_t v : tets[t]) {
+      auto& a = around[size_t(v)];
+      a.erase(std::find(a.begin(), a.end(), t));
+    }
+  }
+  uint32_t add(const std::array<int32_t, 4>& T, int32_t label) {
+    const uint32_t id = uint32_t(tets.size());
+    tets.push_back(T);
+    labels.push_back(label);
+    alive.push_back(1);
+    ++perLabel[size_t(label)];
+    for (int32_t v : T) around[size_t(v)].push_back(id);
+    return id;
+  }
+};
+
+/// Edge removal: re-triangulates the ring of edge (u, v) of tet t when that raises the ring's
+/// worst tet. Returns true when applied.
+bool removeEdge(Editor& m, uint32_t t, int32_t u, int32_t v, std::vector<uint32_t>& fresh) {
+  std::vector<uint32_t> ring;
+  m.tetsOnEdge(u, v, ring);
+  const size_t n = ring.size();
+  if (n < 3 || n > 7) return false;
+  const int32_t label = m.labels[t];
+  double oldMin = 1e300;
+  // Link polygon: per ring tet the edge (p, q) with vol(u, v, p, q) > 0, chained p -> q.
+  std::vector<std::pair<int32_t, int32_t>> links;
+  for (uint32_t s : ring) {
+    if (m.labels[s] != label) return false;
+    oldMin = std::min(oldMin, m.quality(s));
+    int32_t pq[2], k = 0;
+    for (int32_t w : m.tets[s])
+      if (w != u && w != v) pq[k++] = w;
+    const Vec3 &U = m.pts[size_t(u)], &V = m.pts[size_t(v)], &P = m.pts[size_t(pq[0])],
+               &Q = m.pts[size_t(pq[1])];
+    const double vol = dot(cross(sub(P, U), sub(Q, U)), sub(V, U));
+    links.push_back(vol > 0 ? std::make_pair(pq[0], pq[1]) : std::make_pair(pq[1], pq[0]));
+  }
+  std::vector<int32_t> w;
+  w.push_back(links[0].first);
+  for (size_t i = 0; i < n; ++i) {
+    const int32_t cur = w.back();
+    int32_t next = -1;
+    for (const auto& l : links)
+      if (l.first == cur) {
+        if (next >= 0) return false;  // not a simple cycle
+        next = l.second;
+      }
+    if (next < 0) return false;  // open ring: the edge is on the boundary
+    if (i + 1 < n) {
+      if (std::find(w.begin(), w.end(), next) != w.end()) return false;
+      w.push_back(next);
+    } else if (next != w[0]) {
+      return false;
+    }
+  }
+  // Best triangulation of the polygon w[0..n-1]: triangle (i, k, j) gives tets (w_i, w_k, w_j, v)
+  // and (w_i, w_j, w_k, u).
+  double best[7][7];
+  int split[7][7];
+  // A diagonal that is an edge of the mesh already runs outside the ring: never use it.
+  bool existing[7][7] = {};
+  for (size_t i = 0; i < n; ++i)
+    for (size_t j = i + 2; j < n; ++j) {
+      if (i == 0 && j == n - 1) continue;
+      for (uint32_t r : m.around[size_t(w[i])])
+        if (m.has(r, w[j])) existing[i][j] = true;
+    }
+  auto triangleQuality = [&](size_t i, size_t k, size_t j) {
+    if (existing[i][k] || existing[k][j] || existing[i][j]) return -1.0;
+    const double a = m.quality({w[i], w[k], w[j], v});
+    if (a <= 0) return -1.0;
+    return std::min(a, m.quality({w[i], w[j], w[k], u}));
+  };
+  for (size_t len = 1; len < n; ++len)
+    for (size_t i = 0; i + len < n; ++i) {
+      const size_t j = i + len;
+      if (len == 1) {
+        best[i][j] = 1e300;
+        continue;
+      }
+      best[i][j] = -1;
+      split[i][j] = -1;
+      for (size_t k = i + 1; k < j; ++k) {
+        const double q = std::min({best[i][k], best[k][j], triangleQuality(i, k, j)});
+        if (q > best[i][j]) {
+          best[i][j] = q;
+          split[i][j] = int(k);
+        }
+      }
+    }
+  if (best[0][n - 1] <= oldMin + kEps) return false;
+  for (uint32_t s : ring) m.kill(s);
+  std::vector<std::pair<size_t, size_t>> stack{{0, n - 1}};
+  while (!stack.empty()) {
+    const auto [i, j] = stack.back();
+    stack.pop_back();
+    if (j < i + 2) continue;
+    const size_t k = size_t(split[i][j]);
+    fresh.push_back(m.add({w[i], w[k], w[j], v}, label));
+    fresh.push_back(m.add({w[i], w[j], w[k], u}, label));
+    stack.push_back({i, k});
+    stack.push_back({k, j});
+  }
+  return true;
+}
+
+/// 2-to-3 flip across face k of t (the face opposite T[k]) when both tets are of one material.
+bool flipFace(Editor& m, uint32_t t, int k, std::vector<uint32_t>& fresh) {
+  auto f = m.face(t, k);
+  const int64_t s = m.across(t, f[0], f[1], f[2]);
+  if (s < 0 || m.labels[size_t(s)] != m.labels[t]) return false;
+  const int32_t d = m.tets[t][size_t(k)];
+  int32_t e = -1;
+  for (int32_t x : m.tets[size_t(s)])
+    if (x != f[0] && x != f[1] && x != f[2]) e = x;
+  for (uint32_t r : m.around[size_t(d)])
+    if (m.has(r, e)) return false;  // edge d-e exists already
+  // Orient (a, b, c) so that d is on its positive side.
+  const Vec3 &A = m.pts[size_t(f[0])], &B = m.pts[size_t(f[1])], &C = m.pts[size_t(f[2])],
+             &D = m.pts[size_t(d)];
+  if (dot(cross(sub(B, A), sub(C, A)), sub(D, A)) < 0) std::swap(f[1], f[2]);
+  const double oldMin = std::min(m.quality(t), m.quality(uint32_t(s)));
+  const std::array<std::array<int32_t, 4>, 3> nt = {{{e, d, f[0], f[1]},
+                                                      {e, d, f[1], f[2]},
+                                                      {e, d, f[2], f[0]}}};
+  double newMin = 1e300;
+  for (const auto& T : nt) newMin = std::min(newMin, m.quality(T));
+  if (newMin <= oldMin + kEps) return false;
+  const int32_t label = m.labels[t];
+  m.kill(t);
+  m.kill(uint32_t(s));
+  for (const auto& T : nt) fresh.push_back(m.add(T, label));
+  return true;
+}
+
+/// For a vertex on constrained faces: true when all of them are outer-boundary faces of one
+/// material (no interface between two materials holds v) and their vertices lie within
+/// `tolerance` of one plane through v, whose unit normal goes to `normal`. Such a vertex may
+/// slide in that plane: the outer boundary moves by at most `tolerance`.
+bool flatPatch(const Editor& m, int32_t v, double tolerance, Vec3& normal) {
+  if (tolerance <= 0) return false;
+  int32_t material = -1;
+  Vec3 n{0, 0, 0};
+  std::vector<int32_t> ring;
+  for (uint32_t t : m.around[size_t(v)])
+    for (int k = 0; k < 4; ++k) {
+      if (m.tets[t][size_t(k)] == v) continue;
+      const auto f = m.face(t, k);
+      const int64_t s = m.across(t, f[0], f[1], f[2]);
+      if (s >= 0 && m.labels[size_t(s)] == m.labels[t]) continue;
+      if (s >= 0 || (material >= 0 && material != m.labels[t])) return false;
+      material = m.labels[t];
+      // Outward normal of the face seen from t (the vertex opposite lies behind it).
+      const Vec3 &A = m.pts[size_t(f[0])], &B = m.pts[size_t(f[1])], &C = m.pts[size_t(f[2])];
+      Vec3 fn = cross(sub(B, A), sub(C, A));
+      if (dot(fn, sub(m.pts[size_t(m.tets[t][size_t(k)])], A)) > 0)
+        for (double& x : fn) x = -x;
+      for (int a = 0; a < 3; ++a) n[a] += fn[a];
+      ring.insert(ring.end(), f.begin(), f.end());
+    }
+  const double len = norm(n);
+  if (ring.empty() || !(len > 0)) return false;
+  for (double& x : n) x /= len;
+  const Vec3& P = m.pts[size_t(v)];
+  for (int32_t w : ring)
+    if (std::fabs(dot(sub(m.pts[size_t(w)], P), n)) > tolerance) return false;
+  normal = n;
+  return true;
+}
+
+/// Moves vertex v when that raises the worst tet of its star; with `plane`, only within the
+/// plane through v with that unit normal.
+bool smoothVertex(Editor& m, int32_t v, const Vec3* plane = nullptr) {
+  const auto& star = m.around[size_t(v)];
+  if (star.empty()) return false;
+  auto starMin = [&](int64_t* worst) {
+    double q = 1e300;
+    for (uint32_t t : star) {
+      const double x = m.quality(t);
+      if (x < q) {
+        q = x;
+        if (worst) *worst = int64_t(t);
+      }
+    }
+    return q;
+  };
+  Vec3& p = m.pts[size_t(v)];
+  const Vec3 start = p;
+  int64_t worst = -1;
+  double q0 = starMin(&worst);
+  const double qStart = q0;
+  // Neighbour centroid and a length scale.
+  Vec3 centroid{0, 0, 0};
+  double count = 0, scale = 0;
+  for (uint32_t t : star)
+    for (int32_t w : m.tets[t])
+      if (w != v) {
+        for (int a = 0; a < 3; ++a) centroid[a] += m.pts[size_t(w)][a];
+        scale += norm(sub(m.pts[size_t(w)], start));
+        ++count;
+      }
+  for (int a = 0; a < 3; ++a) centroid[a] /= count;
+  scale /= count;
+  auto inPlane = [&](Vec3 d) {  // d without its normal component
+    if (plane) {
+      const double x = dot(d, *plane);
+      for (int a = 0; a < 3; ++a) d[a] -= x * (*plane)[a];
+    }
+    return d;
+  };
+  {
+    const Vec3 d = inPlane(sub(centroid, start));
+    centroid = {start[0] + d[0], start[1] + d[1], start[2] + d[2]};
+  }
+  auto tryAt = [&](const Vec3& x) {
+    const Vec3 keep = p;
+    p = x;
+    const double q = starMin(nullptr);
+    if (q > q0 + kEps) {
+      q0 = starMin(&worst);
+      return true;
+    }
+    p = keep;
+    return false;
+  };
+  tryAt(centroid);
+  for (int iter = 0; iter < 8; ++iter) {
+    // Gradient of the worst tet's angle with respect to p (central differences).
+    const double h = 1e-4 * scale;
+    Vec3 g{0, 0, 0};
+    for (int a = 0; a < 3; ++a) {
+      const double keep = p[a];
+      p[a] = keep + h;
+      const double qp = m.quality(uint32_t(worst));
+      p[a] = keep - h;
+      const double qm = m.quality(uint32_t(worst));
+      p[a] = keep;
+      g[a] = (qp - qm) / (2 * h);
+    }
+    g = inPlane(g);
+    const double gn = norm(g);
+    if (!(gn > 0) || !std::isfinite(gn)) break;
+    bool moved = false;
+    for (double step : {0.2, 0.1, 0.05, 0.02, 0.01, 0.005}) {
+      const Vec3 x{p[0] + step * scale * g[0] / gn, p[1] + step * scale * g[1] / gn,
+                   p[2] + step * scale * g[2] / gn};
+      if (tryAt(x)) {
+        moved = true;
+        break;
+      }
+    }
+    if (!moved) break;
+  }
+  return q0 > qStart + kEps;
+}
+
+/// Removes a flat tet with two, three or four faces on the outer boundary (see Optimize.h).
+bool peel(Editor& m, uint32_t t, double tolerance) {
+  if (tolerance <= 0 || m.perLabel[size_t(m.labels[t])] <= 1) return false;
+  const auto& T = m.tets[t];
+  int outer[4], nOuter = 0;
+  for (int k = 0; k < 4; ++k) {
+    const auto f = m.face(t, k);
+    if (m.across(t, f[0], f[1], f[2]) < 0) outer[nOuter++] = k;
+  }
+  std::vector<uint32_t> ring;
+  if (nOuter == 2) {
+    // Outer faces opposite c and d share the edge (a, b): removing t flips ab to cd.
+    const int32_t c = T[size_t(outer[0])], d = T[size_t(outer[1])];
+    int32_t ab[2], n = 0;
+    for (int32_t x : T)
+      if (x != c && x != d) ab[n++] = x;
+    m.tetsOnEdge(ab[0], ab[1], ring);
+    if (ring.size() != 1) return false;  // ab would stay in other tets: not a surface flip
+    m.tetsOnEdge(c, d, ring);
+    for (uint32_t s : ring)  // cd must not be on the boundary already (non-manifold after)
+      for (int k = 0; k < 4; ++k) {
+        const int32_t x = m.tets[s][size_t(k)];
+        if (x == c || x == d || s == t) continue;
+        const auto f = m.face(s, k);
+        if (m.across(s, f[0], f[1], f[2]) < 0) return false;
+      }
+    const Vec3 &A = m.pts[size_t(ab[0])], &B = m.pts[size_t(ab[1])], &C = m.pts[size_t(c)],
+               &D = m.pts[size_t(d)];
+    const Vec3 nrm = cross(sub(B, A), sub(D, C));
+    const double len = norm(nrm);
+    if (!(len > 0)) return false;
+    if (std::fabs(dot(nrm, sub(C, A))) / len > tolerance) return false;
+  } else if (nOuter == 3) {
+    int inner = 0;
+    while (inner == outer[0] || inner == outer[1] || inner == outer[2]) ++inner;
+    const int32_t apex = T[size_t(inner)];
+    if (m.around[size_t(apex)].size() != 1) return false;
+    const auto f = m.face(t, inner);
+    const Vec3 &A = m.pts[size_t(f[0])], &B = m.pts[size_t(f[1])], &C = m.pts[size_t(f[2])];
+    const Vec3 nrm = cross(sub(B, A), sub(C, A));
+    const double len = norm(nrm);
+    if (!(len > 0)) return false;
+    if (std::fabs(dot(nrm, sub(m.pts[size_t(apex)], A))) / len > tolerance) return false;
+  } else if (nOuter == 4) {  // an isolated tet: drop it when flat (it holds no volume)
+    double height = 1e300;
+    for (int k = 0; k < 4; ++k) {
+      const auto f = m.face(t, k);
+      const Vec3 &A = m.pts[size_t(f[0])], &B = m.pts[size_t(f[1])], &C = m.pts[size_t(f[2])];
+      const Vec3 nrm = cross(sub(B, A), sub(C, A));
+      const double len = norm(nrm);
+      if (len > 0)
+        height = std::min(height, std::fabs(dot(nrm, sub(m.pts[size_t(T[size_t(k)])], A))) / len);
+    }
+    if (height > tolerance) return false;
+  } else {
+    return false;
+  }
+  m.kill(t);
+  return true;
+}
+
+}  // namespace
+
+double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  const Vec3 ab = sub(b, a), ac = sub(c, a), ad = sub(d, a);
+  const double vol = dot(cross(ab, ac), ad);
+  if (!(vol > 0)) return -1;
+  // Outward face normals (unnormalised): opposite a, b, c, d.
+  const Vec3 bc = sub(c, b), bd = sub(d, b);
+  Vec3 n[4] = {cross(bd, bc), cross(ac, ad), cross(ad, ab), cross(ab, ac)};
+  double len[4];
+  for (int i = 0; i < 4; ++i) {
+    len[i] = norm(n[i]);
+    if (!(len[i] > 0)) return -1;
+  }
+  // Dihedral angle at the edge shared by faces i and j: pi - angle(n_i, n_j).
+  double maxCos = -1;
+  for (int i = 0; i < 4; ++i)
+    for (int j = i + 1; j < 4; ++j)
+      maxCos = std::max(maxCos, -dot(n[i], n[j]) / (len[i] * len[j]));
+  return std::acos(std::clamp(maxCos, -1.0, 1.0)) * kRadToDeg;
+}
+
+OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
+                               std::vector<int32_t>& labels, const OptimizeParameters& params,
+                               RunContext& ctx) {
+  OptimizeResult r;
+  auto survey = [&](const std::vector<char>* alive, size_t& below, size_t& below5, double& mn) {
+    below = below5 = 0;
+    mn = tets.empty() ? 0 : 1e300;
+    for (size_t t = 0; t < tets.size(); ++t) {
+      if (alive && !(*alive)[t]) continue;
+      const auto& T = tets[t];
+      const double q = std::max(0.0, tetMinDihedral(points[size_t(T[0])], points[size_t(T[1])],
+                                                    points[size_t(T[2])], points[size_t(T[3])]));
+      mn = std::min(mn, q);
+      below += q < params.targetMinDihedral;
+      below5 += q < 5;
+    }
+  };
+  survey(nullptr, r.tetsBelowTargetBefore, r.tetsBelow5Before, r.minDihedralBefore);
+  if (params.targetMinDihedral <= 0 || r.tetsBelowTargetBefore == 0) {
+    r.tetsBelowTargetAfter = r.tetsBelowTargetBefore;
+    r.tetsBelow5After = r.tetsBelow5Before;
+    r.minDihedralAfter = r.minDihedralBefore;
+    return r;
+  }
+  Editor m(points, tets, labels);
+  std::vector<uint32_t> queue, fresh;
+  for (uint32_t t = 0; t < tets.size(); ++t)
+    if (m.quality(t) < params.targetMinDihedral) queue.push_back(t);
+  for (int pass = 0; pass < params.passes && !queue.empty(); ++pass) {
+    ++r.passes;
+    std::vector<std::pair<double, uint32_t>> order;
+    for (uint32_t t : queue)
+      if (m.alive[t]) order.emplace_back(m.quality(t), t);
+    std::sort(order.begin(), order.end());
+    queue.clear();
+    size_t changes = 0, done = 0;
+    for (const auto& [q0, t] : order) {
+      if ((++done & 0xFF) == 0) {
+        ctx.progress((double(pass) + double(done) / double(order.size())) / params.passes);
+      }
+      if (!m.alive[t] || m.quality(t) >= params.targetMinDihedral) continue;
+      fresh.clear();
+      bool changed = false;
+      if (peel(m, t, params.peelDistance)) {
+        ++r.peeledTets;
+        changed = true;
+      }
+      if (!changed) {  // the best of the six edge removals is not searched: first that helps
+        const auto T = m.tets[t];
+        for (int i = 0; i < 4 && !changed; ++i)
+          for (int j = i + 1; j < 4 && !changed; ++j)
+            if (removeEdge(m, t, T[size_t(i)], T[size_t(j)], fresh)) {
+              ++r.edgeRemovals;
+              changed = true;
+            }
+      }
+      for (int k = 0; k < 4 && !changed; ++k)
+        if (flipFace(m, t, k, fresh)) {
+          ++r.faceFlips;
+          changed = true;
+        }
+      if (!changed && params.smooth) {
+        const auto T = m.tets[t];
+        Vec3 normal;
+        for (int32_t v : T)
+          if ((!m.fixedVertex(v) && smoothVertex(m, v)) ||
+              (m.fixedVertex(v) && flatPatch(m, v, params.peelDistance, normal) &&
+               smoothVertex(m, v, &normal))) {
+            ++r.smoothedVertices;
+            changed = true;
+            for (uint32_t s : m.around[size_t(v)]) fresh.push_back(s);
+          }
+        if (m.alive[t] && m.quality(t) < params.targetMinDihedral && changed) queue.push_back(t);
+      }
+      if (changed) ++changes;
+      for (uint32_t s : fresh)
+        if (m.alive[s] && m.quality(s) < params.targetMinDihedral) queue.push_back(s);
+    }
+    ctx.checkCancel();
+    std::sort(queue.begin(), queue.end());
+    queue.erase(std::unique(queue.begin(), queue.end()), queue.end());
+    if (changes == 0) break;
+  }
+  // Compact: alive tets, used points (order kept).
+  std::vector<std::array<int32_t, 4>> keptTets;
+  std::vector<int32_t> keptLabels;
+  std::vector<int32_t> newId(points.size(), -1);
+  for (size_t t = 0; t < tets.size(); ++t) {
+    if (!m.alive[t]) continue;
+    keptTets.push_back(tets[t]);
+    keptLabels.push_back(labels[t]);
+    for (int32_t v : tets[t]) newId[size_t(v)] = 0;
+  }
+  std::vector<Vec3> keptPoints;
+  for (size_t i = 0; i < points.size(); ++i)
+    if (newId[i] == 0) {
+      newId[i] = int32_t(keptPoints.size());
+      keptPoints.push_back(points[i]);
+    }
+  for (auto& T : keptTets)
+    for (auto& v : T) v = newId[size_t(v)];
+  points.swap(keptPoints);
+  tets.swap(keptTets);
+  labels.swap(keptLabels);
+  survey(nullptr, r.tetsBelowTargetAfter, r.tetsBelow5After, r.minDihedralAfter);
+  ctx.progress(1.0);
+  return r;
+}
+
+}  // namespace femesher

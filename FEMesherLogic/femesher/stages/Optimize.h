@@ -1,0 +1,73 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+/// \file Optimize.h
+/// Stage 10 ("Optimize"): removes slivers and other flat tets left by TetGen, towards a minimum
+/// dihedral angle target, without changing any interface between two materials.
+///
+/// Works on the tets whose minimum dihedral angle is below `targetMinDihedral`, worst first, with
+/// four local operations. Each is applied only when it raises the smallest minimum dihedral angle
+/// of the tets it replaces or moves (so the worst angle of the mesh never decreases and the
+/// process terminates):
+///  - edge removal (Shewchuk's edge removal, 3-to-2, 4-to-4, ... 7-to-10 flips): an edge whose
+///    ring of tets all belong to one material and touch no boundary face is removed, the ring's
+///    link polygon being re-triangulated optimally (dynamic programming over its triangulations);
+///  - 2-to-3 face flips across a face inside one material;
+///  - smoothing of interior vertices (vertices on no interface or boundary face): the vertex
+///    moves to the position that maximises the worst tet of its star (Laplacian candidate and a
+///    line search along the worst tet's gradient); a vertex of the outer boundary alone whose
+///    boundary faces are flat (all their vertices within `peelDistance` of one plane) slides
+///    within that plane the same way;
+///  - peeling: a flat tet with two, three or four faces on the mesh's outer boundary (faces with
+///    no other tet: the interface with the background or the volume's box) is removed when its
+///    thickness is below `peelDistance` (never a material's last tet). That flips two nearly
+///    coplanar boundary triangles, drops a nearly flat cap or an isolated flat tet, and moves the
+///    outer boundary by at most `peelDistance`.
+/// Faces between two materials are never changed, nor are their vertices moved: TetGen's
+/// interface triangles stay exactly as they are, so the mesh stays conformal. The result is
+/// deterministic (sequential, ordered by quality and index). All positions in mm (any frame:
+/// the operations are rigid-motion invariant).
+
+#include <femesher/Types.h>
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace femesher {
+
+class RunContext;
+
+struct OptimizeParameters {
+  /// Tets whose minimum dihedral angle (degrees) is below this are worked on; 0 = stage off.
+  double targetMinDihedral = 15.0;
+  /// Rounds over the tets still below the target (each round stops early once nothing improves).
+  int passes = 4;
+  /// mm; flat tets on the outer boundary thinner than this are removed (0 = never).
+  double peelDistance = 0.0;
+  /// Move interior vertices.
+  bool smooth = true;
+};
+
+struct OptimizeResult {
+  size_t tetsBelowTargetBefore = 0, tetsBelowTargetAfter = 0;
+  size_t tetsBelow5Before = 0, tetsBelow5After = 0;
+  double minDihedralBefore = 0, minDihedralAfter = 0;  ///< degrees
+  size_t edgeRemovals = 0;      ///< n-to-(2n-4) flips (n = 3..7)
+  size_t faceFlips = 0;         ///< 2-to-3 flips
+  size_t smoothedVertices = 0;  ///< interior vertex moves
+  size_t peeledTets = 0;        ///< flat boundary tets removed
+  int passes = 0;               ///< rounds run
+};
+
+/// Minimum dihedral angle of a tet in degrees; -1 when it is not positively oriented (or flat).
+double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
+
+/// Improves the mesh in place. `tets` must be positively oriented; `labels` holds one material
+/// per tet. Tets removed by peeling are erased and points no tet uses any more are dropped
+/// (indices renumbered, order kept). Cancel is checked between operations.
+OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
+                               std::vector<int32_t>& labels, const OptimizeParameters& params,
+                               RunContext& ctx);
+
+}  // namespace femesher
