@@ -209,3 +209,65 @@ TEST(RealDataDeterminism, KneeBoundaryMeshIndependentOfHeapLayout) {
   EXPECT_EQ(a.points, b.points);
   EXPECT_EQ(a.triangles, b.triangles);
 }
+
+// Issue 4: the triple lines appear as mesh edges. Share of the junction particles (triple-line
+// points and quadruple points, sampled by the Junctions stage) that are vertices of an edge shared
+// by the interface triangles of three or more materials, in the surface handed to TetGen (run
+// report count junction_particles_on_triple_edges), with default parameters.
+// Measured (default parameters) before the wedge refinement in BoundaryMesh.cxx, which
+// inserts points on the interfaces bounding a material that is missing around a junction particle:
+// phantom 1.000, mickey 1.000, spheres_argmax 0.994 (159 of 160), knee 0.966 (2362 of 2444),
+// colin27 0.934 (14126 of 15128); after: 1.000, 1.000, 1.000, 0.996 (2435 of 2444), 0.994 (15041
+// of 15128). The particles still off are cusps: a material whose wedge at the line stays under a
+// tenth of a sphere down to 1/16 voxel, or lines crossing a star without a common edge. With the
+// junction refinement switched off the knee and colin27 fall well below the threshold.
+namespace {
+
+constexpr double kMinJunctionShare = 0.99;
+
+void checkJunctionEdges(const LabelVolume& v, const std::string& name) {
+  RunContext ctx;
+  MeshingParameters p;
+  p.computeFidelity = false;
+  auto r = runPipeline(v, p, ctx);
+  ASSERT_TRUE(r.isOk()) << name << ": " << r.status().message();
+  std::map<std::string, double> c(r->counts.begin(), r->counts.end());
+  ASSERT_TRUE(c.count("junction_particles_on_triple_edges")) << name;
+  ASSERT_GT(c["junction_particles"], 0.0) << name << ": no junctions found";
+  EXPECT_GE(c["junction_particles_on_triple_edges"], kMinJunctionShare)
+      << name << ": " << c["junction_particles"] << " junction particles";
+  std::printf(
+      "[real-data] %s: %.0f junction particles, %.4f on triple edges, %.0f refinement "
+      "points, %zu tets\n",
+      name.c_str(), c["junction_particles"], c["junction_particles_on_triple_edges"],
+      c["junction_refinement_points"], r->mesh.tets.size());
+}
+
+class RealDataJunctions : public ::testing::TestWithParam<std::string> {};
+
+}  // namespace
+
+TEST_P(RealDataJunctions, TripleLinesAreMeshEdges) {
+  const std::string path = dataFile(GetParam());
+  if (!std::filesystem::exists(path)) {
+    if (inCI()) FAIL() << "missing data file " << path;
+    GTEST_SKIP() << "missing data file " << path;
+  }
+  auto v = readLabelMap(path);
+  ASSERT_TRUE(v.isOk()) << v.status().message();
+  checkJunctionEdges(v.value(), GetParam());
+}
+
+INSTANTIATE_TEST_SUITE_P(SharedData, RealDataJunctions,
+                         ::testing::Values("mickey.nrrd", "spheres_argmax.nrrd",
+                                           "9135902_00m_WB01.nii.gz", "colin27_v3.nrrd"),
+                         [](const ::testing::TestParamInfo<std::string>& info) {
+                           std::string n = info.param;
+                           for (auto& ch : n)
+                             if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+                           return n;
+                         });
+
+TEST(RealDataJunctionsPhantom, BuiltInPhantomTripleLinesAreMeshEdges) {
+  checkJunctionEdges(makePhantom(), "phantom");
+}

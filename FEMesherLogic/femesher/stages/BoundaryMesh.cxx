@@ -632,11 +632,22 @@ size_t refineVoxelCentres(const IndicatorField& field, Delaunay& dt, RunContext&
 }
 
 /// Junction refinement: a junction particle (triple line) must be a vertex of an edge around
-/// which three or more materials meet, i.e. the line must appear as mesh edges. For a junction
-/// particle where it does not, the line is sampled more densely there: the located line point
-/// (`Junctions::candidates`, same label triple) nearest to the midpoint between the particle and
-/// its nearest neighbour on the same line is inserted, if it is at least a fifth of their
-/// distance from both. Up to kRefineRounds rounds. `jv[j]` is junction particle j's vertex.
+/// which three or more materials meet, i.e. the line must appear as mesh edges. A junction particle
+/// where it does not is handled by what its star (the Delaunay cells around it) lacks:
+///  - a material of its triple has no cell there (the usual case on real data: near the line
+///    that material is a wedge thinner than the sampling, e.g. the background cusp where two
+///    cartilages touch, so no circumcentre of the cells around the particle falls in it). The
+///    wedge is found on small spheres around the particle (the radius halved, from one voxel in
+///    the first round and half as much in each later round, down to a sixteenth of a voxel, until
+///    the material covers a tenth of the sphere), and the two interfaces bounding it there (the
+///    missing material against each of the other two) get a point each, about that far from the
+///    particle: a cell with the particle and these two points as vertices has its circumcentre
+///    inside the wedge, so the particle's star holds the material.
+///  - all three are there but on no common edge: the line is sampled more densely there: the
+///    located line point (`Junctions::candidates`, same label triple) nearest to the midpoint
+///    between the particle and its nearest neighbour on the same line is inserted, if it is at
+///    least a fifth of their distance from both.
+/// Up to kRefineRounds rounds. `jv[j]` is junction particle j's vertex.
 size_t refineJunctionEdges(const IndicatorField& field, Delaunay& dt, const Junctions& junctions,
                            const std::vector<Delaunay::Vertex_handle>& jv, RunContext& ctx,
                            size_t& stillOff) {
@@ -679,26 +690,123 @@ size_t refineJunctionEdges(const IndicatorField& field, Delaunay& dt, const Junc
   auto dist2 = [](const Vec3& a, const Vec3& b) {
     return (a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]);
   };
+  const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+  // Directions for finding a material's wedge around a particle (Fibonacci lattice on the sphere).
+  constexpr int kWedgeDirections = 64;
+  std::vector<Vec3> dirs(kWedgeDirections);
+  for (int i = 0; i < kWedgeDirections; ++i) {
+    const double z = 1.0 - (2.0 * i + 1.0) / kWedgeDirections, r = std::sqrt(1.0 - z * z);
+    const double phi = i * 2.399963229728653;  // golden angle
+    dirs[size_t(i)] = {r * std::cos(phi), r * std::sin(phi), z};
+  }
+  // The two (or, at a quadruple point, up to three) interface points bounding the wedge of
+  // material c next to the particle at p (canonical mm). The radius goes from r0 down to a
+  // sixteenth of a voxel until c covers at least a tenth of the sphere (a wedge of 36 degrees or
+  // more), so the points are neither in the thin part of the wedge nor crowded onto the particle
+  // (never closer than a quarter of the radius to it or to another vertex).
+  auto wedgePoints = [&](const Vec3& p, int c, const JunctionPoint& jp, double r0, Candidate* out) {
+    int written = 0;
+    for (double r = r0; r > 0.05 * smin; r *= 0.5) {
+      Vec3 sum{0, 0, 0};
+      int hits = 0;
+      for (const Vec3& u : dirs)
+        if (field.argmax(
+                vol.canonicalToLocal({p[0] + r * u[0], p[1] + r * u[1], p[2] + r * u[2]})) == c) {
+          for (int a = 0; a < 3; ++a) sum[a] += u[a];
+          ++hits;
+        }
+      if (hits * 10 < kWedgeDirections) continue;
+      const double sl = std::sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
+      if (!(sl > 0)) continue;
+      const Vec3 m{p[0] + r * sum[0] / sl, p[1] + r * sum[1] / sl, p[2] + r * sum[2] / sl};
+      if (field.argmax(vol.canonicalToLocal(m)) != c) continue;
+      for (int i = 0; i < jp.count; ++i) {
+        const int o = jp.labels[size_t(i)];
+        if (o == c) continue;
+        // Along the gradient of f_o - f_c from m (inside c) to where o takes over.
+        const Vec3 ml = vol.canonicalToLocal(m);
+        const Vec3 go = field.gradient(o, ml), gc = field.gradient(c, ml);
+        Vec3 g{(go[0] - gc[0]) / vol.spacing[0], (go[1] - gc[1]) / vol.spacing[1],
+               (go[2] - gc[2]) / vol.spacing[2]};
+        const double gl = std::sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+        if (!(gl > 0)) continue;
+        for (auto& x : g) x /= gl;
+        auto phi = [&](double t) {
+          const Vec3 l = vol.canonicalToLocal({m[0] + t * g[0], m[1] + t * g[1], m[2] + t * g[2]});
+          return field.eval(o, l) - field.eval(c, l);
+        };
+        double tIn = 0, tOut = -1;
+        for (double t = 0.125 * r; t <= 2 * r; t += 0.125 * r) {
+          if (phi(t) >= 0) {
+            tOut = t;
+            break;
+          }
+          tIn = t;
+        }
+        if (tOut < 0) continue;
+        for (int it = 0; it < 30; ++it) {
+          const double mid = 0.5 * (tIn + tOut);
+          if (phi(mid) < 0)
+            tIn = mid;
+          else
+            tOut = mid;
+        }
+        const double t = 0.5 * (tIn + tOut);
+        const Vec3 w{m[0] + t * g[0], m[1] + t * g[1], m[2] + t * g[2]};
+        const int am = field.argmax(vol.canonicalToLocal(w));
+        if (am != o && am != c) continue;  // another material's interface
+        if (dist2(w, p) < 0.0625 * r * r) continue;
+        out[written++] = {1.0 + r, w, 0.25 * r};
+      }
+      break;
+    }
+    return written;
+  };
+  constexpr int kPerParticle = 12;  // up to 4 missing materials x 3 others
   size_t inserted = 0;
   stillOff = 0;
   for (int round = 0; round < kRefineRounds; ++round) {
     std::vector<uint32_t> off;
-    for (size_t j = 0; j < jv.size(); ++j)
-      if (jv[j] != Delaunay::Vertex_handle() && junctions.particles[j].count == 3 &&
-          !onTripleEdge(jv[j]))
-        off.push_back(uint32_t(j));
+    std::vector<uint8_t> missing;  // per off particle: bit i = labels[i] has no cell around it
+    for (size_t j = 0; j < jv.size(); ++j) {
+      if (jv[j] == Delaunay::Vertex_handle() || onTripleEdge(jv[j])) continue;
+      const JunctionPoint& jp = junctions.particles[j];
+      std::vector<Delaunay::Cell_handle> cells;  // (incident_cells is not thread safe)
+      dt.incident_cells(jv[j], std::back_inserter(cells));
+      uint8_t miss = 0;
+      for (int i = 0; i < jp.count; ++i) {
+        bool there = false;
+        for (auto c : cells)
+          there = there || (dt.is_infinite(c) ? 0 : c->info()) == jp.labels[size_t(i)];
+        if (!there) miss |= uint8_t(1u << i);
+      }
+      off.push_back(uint32_t(j));
+      missing.push_back(miss);
+    }
     stillOff = off.size();
     if (off.empty()) break;
-    std::vector<Candidate> cand(off.size(), Candidate{0, {0, 0, 0}, 0});
+    std::vector<Candidate> cand(off.size() * kPerParticle, Candidate{0, {0, 0, 0}, 0});
+    // Each round looks for the wedges closer to the particles (where they are wider).
+    const double wedgeRadius = std::ldexp(smin, -round);
     parallelFor(off.size(), threads, [&](size_t b, size_t e, int) {
       for (size_t n = b; n < e; ++n) {
         const uint32_t j = off[n];
-        const uint64_t key = keyOf(junctions.particles[j]);
+        const JunctionPoint& jp = junctions.particles[j];
         const Vec3 p = pointOf(jv[j]);
+        if (missing[n]) {
+          int w = 0;
+          for (int i = 0; i < jp.count; ++i)
+            if (missing[n] & (1u << i))
+              w += wedgePoints(p, jp.labels[size_t(i)], jp, wedgeRadius,
+                               &cand[n * kPerParticle + size_t(w)]);
+          continue;
+        }
+        if (jp.count != 3) continue;
+        const uint64_t key = keyOf(jp);
         // Nearest other particle of the same line.
         double best = 1e300;
         Vec3 q{0, 0, 0};
-        for (uint32_t k : members[key]) {
+        for (uint32_t k : members.at(key)) {
           if (k == j) continue;
           const double d2 = dist2(p, pointOf(jv[k]));
           if (d2 < best) {
@@ -720,15 +828,17 @@ size_t refineJunctionEdges(const IndicatorField& field, Delaunay& dt, const Junc
           bestM = dm;
           pick = &c;
         }
-        if (pick) cand[n] = {1.0 / (1.0 + d), *pick, 0.2 * d};
+        if (pick) cand[n * kPerParticle] = {1.0 / (1.0 + d), *pick, 0.2 * d};
       }
     });
     ctx.checkCancel();
-    const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
     const auto fresh = insertCandidates(dt, std::move(cand), smin, threads);
     ctx.debug("Junction refinement round " + std::to_string(round) + ": " +
-              std::to_string(off.size()) + " junction particles not on a triple edge, " +
-              std::to_string(fresh.size()) + " line points inserted");
+              std::to_string(off.size()) + " junction particles not on a triple edge (" +
+              std::to_string(
+                  std::count_if(missing.begin(), missing.end(), [](uint8_t m) { return m != 0; })) +
+              " with a material missing around them), " + std::to_string(fresh.size()) +
+              " points inserted");
     inserted += fresh.size();
     if (fresh.empty()) break;
     relabelAround(field, dt, fresh, threads);

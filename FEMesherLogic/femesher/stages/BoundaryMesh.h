@@ -67,7 +67,7 @@ struct BoundarySurface {
   std::vector<int> forcedLabels;    ///< compact labels given to the tets holding their voxels
   size_t refinementPoints = 0;      ///< points inserted by the facet-distance refinement
   size_t voxelCentrePoints = 0;     ///< points inserted so voxel centres fall in their label
-  size_t junctionPoints = 0;        ///< triple-line points inserted so the lines become edges
+  size_t junctionPoints = 0;        ///< points inserted so the triple lines become edges
   size_t junctionsOffLines = 0;     ///< junction particles still on no triple edge afterwards
 };
 
@@ -78,7 +78,10 @@ struct BoundarySurface {
 /// shortest edge to another vertex; at most 10 rounds), then the voxel centres (each next to
 /// another label must fall in a tet of its label), then, with `junctions` (whose particles must
 /// be the first points), the triple lines: where a junction particle is on no edge of three
-/// materials, located line points are inserted between it and its neighbour on the line.
+/// materials, either a material of its junction has no tet around it (its wedge at the line is
+/// thinner than the sampling: points are inserted on the two interfaces bounding that wedge, a
+/// voxel or less from the particle) or the line crosses its star off the edges (located line
+/// points are inserted between it and its neighbour on the line).
 BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector<Vec3>& points,
                                   const SurfaceSamples& dense, RunContext& ctx,
                                   double facetDistance = 0, const Junctions* junctions = nullptr,
