@@ -220,8 +220,8 @@ TEST(RealDataDeterminism, KneeBoundaryMeshIndependentOfHeapLayout) {
 // mickey 1.000, spheres_argmax 0.994 (159 of 160), knee 0.966 (2362 of 2444), colin27 0.934
 // (14126 of 15128); after: 1.000, 1.000, 1.000, 0.9996 (2443 of 2444), 1.000 (15128). The knee's
 // last one has its wedge points inserted but the background wedge there stays too short along
-// the line. With the junction refinement switched off the knee gives 0.957 (the test fails);
-// phantom, mickey and spheres_argmax (0.994) pass without it.
+// the line. With the junction refinement switched off, the knee (0.957) and spheres_argmax
+// (0.994) fail this test; phantom and mickey (1.000) pass without it.
 namespace {
 
 constexpr double kMinJunctionShare = 0.998;
