@@ -213,17 +213,18 @@ TEST(RealDataDeterminism, KneeBoundaryMeshIndependentOfHeapLayout) {
 // Issue 4: the triple lines appear as mesh edges. Share of the junction particles (triple-line
 // points and quadruple points, sampled by the Junctions stage) that are vertices of an edge shared
 // by the interface triangles of three or more materials, in the surface handed to TetGen (run
-// report count junction_particles_on_triple_edges), with default parameters.
-// Measured (default parameters) before the wedge refinement in BoundaryMesh.cxx, which
-// inserts points on the interfaces bounding a material that is missing around a junction particle:
-// phantom 1.000, mickey 1.000, spheres_argmax 0.994 (159 of 160), knee 0.966 (2362 of 2444),
-// colin27 0.934 (14126 of 15128); after: 1.000, 1.000, 1.000, 0.996 (2435 of 2444), 0.994 (15041
-// of 15128). The particles still off are cusps: a material whose wedge at the line stays under a
-// tenth of a sphere down to 1/16 voxel, or lines crossing a star without a common edge. With the
-// junction refinement switched off the knee and colin27 fall well below the threshold.
+// report count junction_particles_on_triple_edges), with default parameters. No particle is
+// excluded from the measure.
+// Measured before the wedge refinement in BoundaryMesh.cxx (points on the interfaces bounding a
+// material missing around a junction particle, and on the line next to it): phantom 1.000,
+// mickey 1.000, spheres_argmax 0.994 (159 of 160), knee 0.966 (2362 of 2444), colin27 0.934
+// (14126 of 15128); after: 1.000, 1.000, 1.000, 0.9996 (2443 of 2444), 1.000 (15128). The knee's
+// last one has its wedge points inserted but the background wedge there stays too short along
+// the line. With the junction refinement switched off, the knee (0.957) and spheres_argmax
+// (0.994) fail this test; phantom and mickey (1.000) pass without it.
 namespace {
 
-constexpr double kMinJunctionShare = 0.99;
+constexpr double kMinJunctionShare = 0.998;
 
 void checkJunctionEdges(const LabelVolume& v, const std::string& name) {
   RunContext ctx;

@@ -634,19 +634,21 @@ size_t refineVoxelCentres(const IndicatorField& field, Delaunay& dt, RunContext&
 /// Junction refinement: a junction particle (triple line) must be a vertex of an edge around
 /// which three or more materials meet, i.e. the line must appear as mesh edges. A junction particle
 /// where it does not is handled by what its star (the Delaunay cells around it) lacks:
-///  - a material of its triple has no cell there (the usual case on real data: near the line
+///  - a material of its junction has no cell there (the usual case on real data: near the line
 ///    that material is a wedge thinner than the sampling, e.g. the background cusp where two
 ///    cartilages touch, so no circumcentre of the cells around the particle falls in it). The
 ///    wedge is found on small spheres around the particle (the radius halved, from one voxel in
 ///    the first round and half as much in each later round, down to a sixteenth of a voxel, until
-///    the material covers a tenth of the sphere), and the two interfaces bounding it there (the
-///    missing material against each of the other two) get a point each, about that far from the
-///    particle: a cell with the particle and these two points as vertices has its circumcentre
-///    inside the wedge, so the particle's star holds the material.
-///  - all three are there but on no common edge: the line is sampled more densely there: the
-///    located line point (`Junctions::candidates`, same label triple) nearest to the midpoint
-///    between the particle and its nearest neighbour on the same line is inserted, if it is at
-///    least a fifth of their distance from both.
+///    the material covers a tenth of the sphere); the two interfaces bounding it there (the
+///    missing material against each of the other two) get a point each, and the line gets the
+///    points about that far from the particle on either side. The Voronoi edge dual to the
+///    triangle of the particle and the two wedge points runs along the line, between the
+///    circumcentres of the cells it makes with the two line points: both lie in the wedge, so
+///    the star holds the material, and the edges to the line points have all three around them.
+///  - all three are there but on no common edge: the line points about the round's radius from
+///    it on either side are inserted (else, when they cannot be located, the located line point
+///    of `Junctions::candidates` nearest to the midpoint between the particle and its nearest
+///    neighbour on the same line, if at least a fifth of their distance from both).
 /// Up to kRefineRounds rounds. `jv[j]` is junction particle j's vertex.
 size_t refineJunctionEdges(const IndicatorField& field, Delaunay& dt, const Junctions& junctions,
                            const std::vector<Delaunay::Vertex_handle>& jv, RunContext& ctx,
@@ -699,11 +701,40 @@ size_t refineJunctionEdges(const IndicatorField& field, Delaunay& dt, const Junc
     const double phi = i * 2.399963229728653;  // golden angle
     dirs[size_t(i)] = {r * std::cos(phi), r * std::sin(phi), z};
   }
+  // The points of the particle's triple line about r from it on either side (canonical mm; none
+  // at a quadruple point).
+  auto nearLinePoints = [&](const Vec3& p, const JunctionPoint& jp, double r, Candidate* out) {
+    int written = 0;
+    if (jp.count != 3) return written;
+    const Vec3 pl = vol.canonicalToLocal(p);
+    Vec3 g[2];
+    for (int i = 0; i < 2; ++i) {
+      const Vec3 g0 = field.gradient(jp.labels[0], pl),
+                 gi = field.gradient(jp.labels[size_t(i + 1)], pl);
+      g[i] = {(g0[0] - gi[0]) / vol.spacing[0], (g0[1] - gi[1]) / vol.spacing[1],
+              (g0[2] - gi[2]) / vol.spacing[2]};
+    }
+    const Vec3 t{g[0][1] * g[1][2] - g[0][2] * g[1][1], g[0][2] * g[1][0] - g[0][0] * g[1][2],
+                 g[0][0] * g[1][1] - g[0][1] * g[1][0]};
+    const double tl = std::sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+    if (!(tl > 0)) return written;
+    for (double sgn : {1.0, -1.0}) {
+      Vec3 x = vol.canonicalToLocal(
+          {p[0] + sgn * r * t[0] / tl, p[1] + sgn * r * t[1] / tl, p[2] + sgn * r * t[2] / tl});
+      if (!locateJunctionPoint(field, jp.labels.data(), 3, x)) continue;
+      const Vec3 q = vol.localToCanonical(x);
+      const double d2 = dist2(q, p);
+      if (d2 < 0.25 * r * r || d2 > 4 * r * r) continue;
+      out[written++] = {1.0 + r, q, 0.25 * r};
+    }
+    return written;
+  };
   // The two (or, at a quadruple point, up to three) interface points bounding the wedge of
-  // material c next to the particle at p (canonical mm). The radius goes from r0 down to a
-  // sixteenth of a voxel until c covers at least a tenth of the sphere (a wedge of 36 degrees or
-  // more), so the points are neither in the thin part of the wedge nor crowded onto the particle
-  // (never closer than a quarter of the radius to it or to another vertex).
+  // material c next to the particle at p (canonical mm), and the line points as far on either
+  // side. The radius goes from r0 down to a sixteenth of a voxel until c covers at least a tenth
+  // of the sphere (a wedge of 36 degrees or more), so the points are neither in the thin part of
+  // the wedge nor crowded onto the particle (never closer than a quarter of the radius to it or
+  // to another vertex).
   auto wedgePoints = [&](const Vec3& p, int c, const JunctionPoint& jp, double r0, Candidate* out) {
     int written = 0;
     for (double r = r0; r > 0.05 * smin; r *= 0.5) {
@@ -758,11 +789,12 @@ size_t refineJunctionEdges(const IndicatorField& field, Delaunay& dt, const Junc
         if (dist2(w, p) < 0.0625 * r * r) continue;
         out[written++] = {1.0 + r, w, 0.25 * r};
       }
+      if (written > 0) written += nearLinePoints(p, jp, r, out + written);
       break;
     }
     return written;
   };
-  constexpr int kPerParticle = 12;  // up to 4 missing materials x 3 others
+  constexpr int kPerParticle = 16;  // up to 4 missing materials x 3 others, 2 line points each
   size_t inserted = 0;
   stillOff = 0;
   for (int round = 0; round < kRefineRounds; ++round) {
@@ -802,6 +834,10 @@ size_t refineJunctionEdges(const IndicatorField& field, Delaunay& dt, const Junc
           continue;
         }
         if (jp.count != 3) continue;
+        // All its materials are around it but on no common edge: the line points about the
+        // round's radius from it on either side (the triple edges are the ones along the line),
+        // else the located line point halfway to its neighbour on the line.
+        if (nearLinePoints(p, jp, wedgeRadius, &cand[n * kPerParticle]) > 0) continue;
         const uint64_t key = keyOf(jp);
         // Nearest other particle of the same line.
         double best = 1e300;

@@ -79,9 +79,9 @@ struct BoundarySurface {
 /// another label must fall in a tet of its label), then, with `junctions` (whose particles must
 /// be the first points), the triple lines: where a junction particle is on no edge of three
 /// materials, either a material of its junction has no tet around it (its wedge at the line is
-/// thinner than the sampling: points are inserted on the two interfaces bounding that wedge, a
-/// voxel or less from the particle) or the line crosses its star off the edges (located line
-/// points are inserted between it and its neighbour on the line).
+/// thinner than the sampling: points are inserted on the two interfaces bounding that wedge and
+/// on the line, a voxel or less from the particle) or the line crosses its star off the edges
+/// (line points are inserted next to it).
 BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector<Vec3>& points,
                                   const SurfaceSamples& dense, RunContext& ctx,
                                   double facetDistance = 0, const Junctions* junctions = nullptr,

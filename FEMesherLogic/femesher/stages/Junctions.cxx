@@ -86,6 +86,14 @@ bool leading(const IndicatorField& f, const uint16_t* l, int n, const Vec3& x, d
 
 }  // namespace
 
+bool locateJunctionPoint(const IndicatorField& field, const uint16_t* labels, int n, Vec3& local) {
+  const PreprocessedVolume& vol = field.volume();
+  const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+  const double tol = 1e-4 * smin;
+  return solveJunction(Eval{field, vol}, labels, n, local, tol) &&
+         leading(field, labels, n, local, 10 * tol);
+}
+
 Junctions findJunctions(const IndicatorField& field, const SizingFunction& sizing,
                         const JunctionParameters& params, RunContext& ctx) {
   const PreprocessedVolume& vol = field.volume();

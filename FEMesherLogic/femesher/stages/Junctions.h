@@ -58,6 +58,12 @@ struct Junctions {
   size_t quadruplePoints = 0;             ///< among `particles`
 };
 
+/// Moves `local` (local voxel index position) onto the junction of the n = 3 (triple line) or 4
+/// (quadruple point) sorted compact `labels`, as the candidates are located (Gauss-Newton on the
+/// differences of their indicator functions, steps of at most half a voxel). True when it
+/// converged with these labels the n leading materials there.
+bool locateJunctionPoint(const IndicatorField& field, const uint16_t* labels, int n, Vec3& local);
+
 Junctions findJunctions(const IndicatorField& field, const SizingFunction& sizing,
                         const JunctionParameters& params, RunContext& ctx);
 
