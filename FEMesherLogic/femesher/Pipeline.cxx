@@ -259,6 +259,9 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
       StageScope st(ctx, result.timings, "BoundaryMesh");
       const auto boundaryStart = Clock::now();
       const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+      // Points on the input's box exactly on it (as buildBoundaryMesh does), so that the
+      // particles below are the surface's vertices to the bit.
+      for (Vec3& l : particles) l = field->snapToBox(l, 2e-3 * smin);
       surface = buildBoundaryMesh(*field, particles, samples, ctx, params.facetDistance * smin,
                                   &junctions, params.voxelRefinement);
       restrictedSeconds = std::chrono::duration<double>(Clock::now() - boundaryStart).count();

@@ -272,16 +272,29 @@ std::vector<uint32_t> mortonOrder(const std::vector<Vec3>& points, double cell) 
   return order;
 }
 
+/// A canonical point within 0.002 voxel of the input's box, put exactly on it (below every
+/// projection tolerance; box faces become exactly planar, so no flat Delaunay tets lie on them).
+double snapTolerance(const PreprocessedVolume& vol) {
+  return 2e-3 * std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+}
+Vec3 snapToBox(const IndicatorField& field, const Vec3& canonical) {  // unchanged when not snapped
+  const PreprocessedVolume& vol = field.volume();
+  const Vec3 l = vol.canonicalToLocal(canonical), q = field.snapToBox(l, snapTolerance(vol));
+  return q == l ? canonical : vol.localToCanonical(q);
+}
+
 /// Inserts the candidates with a non-zero deviation greedily, largest deviation first (ties by
 /// position, so the order does not depend on threads): a candidate closer than its exclusion
 /// radius to an already accepted candidate, or to a vertex of the triangulation's cell that
 /// holds it or of that cell's neighbours, is skipped. The accepted ones go in in Z-order (short
 /// walks). Returns the new vertices (info = kRefinementPoint).
-std::vector<Delaunay::Vertex_handle> insertCandidates(Delaunay& dt, std::vector<Candidate> cand,
-                                                      double cell, int threads) {
+std::vector<Delaunay::Vertex_handle> insertCandidates(const IndicatorField& field, Delaunay& dt,
+                                                      std::vector<Candidate> cand, double cell,
+                                                      int threads) {
   cand.erase(std::remove_if(cand.begin(), cand.end(),
                             [](const Candidate& c) { return c.deviation == 0; }),
              cand.end());
+  for (Candidate& c : cand) c.point = snapToBox(field, c.point);
   std::sort(cand.begin(), cand.end(), [](const Candidate& x, const Candidate& y) {
     if (x.deviation != y.deviation) return x.deviation > y.deviation;
     return x.point < y.point;
@@ -499,7 +512,7 @@ size_t refineFacetDistance(const IndicatorField& field, Delaunay& dt, double del
     const size_t tooFar = size_t(std::count_if(cand.begin(), cand.end(),
                                                [](const Candidate& c) { return c.deviation != 0; }));
     if (tooFar == 0) break;
-    fresh = insertCandidates(dt, std::move(cand), smin, threads);
+    fresh = insertCandidates(field, dt, std::move(cand), smin, threads);
     const size_t roundInserted = fresh.size();
     inserted += roundInserted;
     ctx.debug("Facet-distance refinement round " + std::to_string(round) + ": " +
@@ -598,7 +611,7 @@ size_t refineVoxelCentres(const IndicatorField& field, Delaunay& dt, RunContext&
     }, chunks);
     ctx.checkCancel();
     const size_t nWrong = size_t(std::count(wrong.begin(), wrong.end(), 1));
-    const auto fresh = insertCandidates(dt, std::move(cand), smin, threads);
+    const auto fresh = insertCandidates(field, dt, std::move(cand), smin, threads);
     ctx.debug("Voxel-centre refinement round " + std::to_string(round) + ": " +
               std::to_string(voxels.size()) + " of " + std::to_string(allVoxels) +
               " boundary voxels checked, " + std::to_string(nWrong) +
@@ -868,7 +881,7 @@ size_t refineJunctionEdges(const IndicatorField& field, Delaunay& dt, const Junc
       }
     });
     ctx.checkCancel();
-    const auto fresh = insertCandidates(dt, std::move(cand), smin, threads);
+    const auto fresh = insertCandidates(field, dt, std::move(cand), smin, threads);
     ctx.debug("Junction refinement round " + std::to_string(round) + ": " +
               std::to_string(off.size()) + " junction particles not on a triple edge (" +
               std::to_string(
@@ -897,7 +910,7 @@ BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector
   std::vector<std::pair<Point, int32_t>> pts;
   pts.reserve(points.size());
   for (const Vec3& l : points) {
-    const Vec3 c = vol.localToCanonical(l);
+    const Vec3 c = vol.localToCanonical(field.snapToBox(l, snapTolerance(vol)));
     pts.emplace_back(Point(c[0], c[1], c[2]), int32_t(pts.size()));
   }
   const bool particlesAreVertices = pts.size() >= 4;
@@ -905,7 +918,7 @@ BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector
     // Tiny inputs: the sampling spacing exceeds the whole structure; use every interface vertex.
     pts.clear();
     for (const auto& smp : samples.all) {
-      const Vec3 c = vol.localToCanonical(smp.local);
+      const Vec3 c = vol.localToCanonical(field.snapToBox(smp.local, snapTolerance(vol)));
       pts.emplace_back(Point(c[0], c[1], c[2]), int32_t(pts.size()));
     }
   }

@@ -71,7 +71,8 @@ struct BoundarySurface {
   size_t junctionsOffLines = 0;     ///< junction particles still on no triple edge afterwards
 };
 
-/// `points`: the particles (local voxel index positions). `dense`: every interface vertex, used
+/// `points`: the particles (local voxel index positions); a point within 0.002 voxel of the
+/// input's box is put exactly on it (IndicatorField::snapToBox), and so is every refinement point. `dense`: every interface vertex, used
 /// to repair labels that the particles miss. `facetDistance` (mm, 0 = off): refine the surface
 /// until every interface triangle's centroid is within this distance of the interface f_a = f_b
 /// (points inserted on the interface, farthest first, never closer than half the triangle's

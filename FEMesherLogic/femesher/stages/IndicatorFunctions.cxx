@@ -113,7 +113,7 @@ void gaussianBlur(std::vector<float>& g, const std::array<int, 3>& dims, double 
 
 }  // namespace
 
-float IndicatorField::value(int m, int i, int j, int k) const {
+float IndicatorField::valueRaw(int m, int i, int j, int k) const {
   const Box& b = boxes_[m];
   const int x = i - b.lo[0], y = j - b.lo[1], z = k - b.lo[2];
   if (x < 0 || y < 0 || z < 0 || x >= b.dims[0] || y >= b.dims[1] || z >= b.dims[2]) {
@@ -141,10 +141,10 @@ void IndicatorField::corners(int m, int i, int j, int k, double out[8]) const {
     out[7] = p[sz + sy + 1];
     return;
   }
-  for (int c = 0; c < 8; ++c) out[c] = value(m, i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
+  for (int c = 0; c < 8; ++c) out[c] = valueRaw(m, i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
 }
 
-double IndicatorField::eval(int m, const Vec3& l) const {
+double IndicatorField::evalRaw(int m, const Vec3& l) const {
   const int i = int(std::floor(l[0])), j = int(std::floor(l[1])), k = int(std::floor(l[2]));
   const double u = l[0] - i, v = l[1] - j, w = l[2] - k;
   double f[8];
@@ -155,7 +155,7 @@ double IndicatorField::eval(int m, const Vec3& l) const {
   return y0 + w * (y1 - y0);
 }
 
-Vec3 IndicatorField::gradient(int m, const Vec3& l) const {
+Vec3 IndicatorField::gradientRaw(int m, const Vec3& l) const {
   const int i = int(std::floor(l[0])), j = int(std::floor(l[1])), k = int(std::floor(l[2]));
   const double u = l[0] - i, v = l[1] - j, w = l[2] - k;
   Vec3 g{0, 0, 0};
@@ -170,6 +170,72 @@ Vec3 IndicatorField::gradient(int m, const Vec3& l) const {
     g[2] += (dk ? 1 : -1) * wu * wv * f;
   }
   return g;
+}
+
+double IndicatorField::boxDistance(const Vec3& l, Vec3* grad) const {
+  const Vec3& s = vol_->spacing;
+  double out2 = 0, inside = std::numeric_limits<double>::infinity();
+  int insideAxis = 0;
+  double insideSign = 0;
+  Vec3 excess{0, 0, 0};
+  for (int a = 0; a < 3; ++a) {
+    const double below = (boxLo_[a] - l[a]) * s[a], above = (l[a] - boxHi_[a]) * s[a];
+    if (below > 0) excess[a] = -below;
+    if (above > 0) excess[a] = above;
+    out2 += excess[a] * excess[a];
+    if (-below < inside) {  // inside: the nearest face
+      inside = -below;
+      insideAxis = a;
+      insideSign = -1;
+    }
+    if (-above < inside) {
+      inside = -above;
+      insideAxis = a;
+      insideSign = 1;
+    }
+  }
+  if (out2 > 0) {
+    const double d = std::sqrt(out2);
+    if (grad)
+      for (int a = 0; a < 3; ++a) (*grad)[a] = excess[a] * s[a] / d;
+    return d;
+  }
+  if (grad) {
+    *grad = {0, 0, 0};
+    (*grad)[insideAxis] = insideSign * s[insideAxis];
+  }
+  return -inside;
+}
+
+Vec3 IndicatorField::snapToBox(const Vec3& l, double tolerance) const {
+  if (!(std::fabs(boxDistance(l, nullptr)) <= tolerance)) return l;
+  Vec3 q = l;
+  for (int a = 0; a < 3; ++a) q[a] = std::clamp(q[a], boxLo_[a], boxHi_[a]);
+  const Vec3& s = vol_->spacing;
+  for (int a = 0; a < 3; ++a) {  // every face within the tolerance (edges and corners: several)
+    if ((q[a] - boxLo_[a]) * s[a] <= tolerance) q[a] = boxLo_[a];
+    if ((boxHi_[a] - q[a]) * s[a] <= tolerance) q[a] = boxHi_[a];
+  }
+  return q;
+}
+
+float IndicatorField::value(int m, int i, int j, int k) const {
+  return float(clip(m, valueRaw(m, i, j, k), boxDistance({double(i), double(j), double(k)}, nullptr)));
+}
+
+double IndicatorField::eval(int m, const Vec3& l) const {
+  return clip(m, evalRaw(m, l), boxDistance(l, nullptr));
+}
+
+Vec3 IndicatorField::gradient(int m, const Vec3& l) const {
+  Vec3 g;
+  const double f = evalRaw(m, l), d = boxDistance(l, &g);
+  if (m == 0 ? d > f : -d < f) {  // the box is the active branch
+    if (m != 0)
+      for (double& x : g) x = -x;
+    return g;
+  }
+  return gradientRaw(m, l);
 }
 
 int IndicatorField::cornerLabels(const Vec3& l, int out[8]) const {
@@ -208,6 +274,23 @@ IndicatorField computeIndicatorFunctions(const PreprocessedVolume& vol,
                                          const IndicatorParameters& params, RunContext& ctx) {
   IndicatorField field;
   field.vol_ = &vol;
+  // The input's box (local index units); unknown for hand-built volumes: no clip, no extension.
+  const bool knownBox = vol.inputDims[0] > 0 && vol.inputDims[1] > 0 && vol.inputDims[2] > 0;
+  std::array<int, 3> inLo{{0, 0, 0}}, inHi{{vol.dims[0] - 1, vol.dims[1] - 1, vol.dims[2] - 1}};
+  for (int a = 0; a < 3; ++a) {
+    const double inf = std::numeric_limits<double>::infinity();
+    field.boxLo_[a] = knownBox ? -vol.offset[a] - 0.5 : -inf;
+    field.boxHi_[a] = knownBox ? vol.inputDims[a] - vol.offset[a] - 0.5 : inf;
+    if (knownBox) {
+      inLo[a] = std::clamp(-vol.offset[a], 0, vol.dims[a] - 1);
+      inHi[a] = std::clamp(vol.inputDims[a] - 1 - vol.offset[a], 0, vol.dims[a] - 1);
+    }
+  }
+  // Labels extended past the box: a padding voxel takes the label of the nearest voxel inside.
+  auto extended = [&](int i, int j, int k) {
+    return vol.at(std::clamp(i, inLo[0], inHi[0]), std::clamp(j, inLo[1], inHi[1]),
+                  std::clamp(k, inLo[2], inHi[2]));
+  };
   const int nLabels = int(vol.userLabel.size());
   const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
   const double smax = std::max({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
@@ -226,7 +309,7 @@ IndicatorField computeIndicatorFunctions(const PreprocessedVolume& vol,
   for (int k = 0; k < vol.dims[2]; ++k)
     for (int j = 0; j < vol.dims[1]; ++j)
       for (int i = 0; i < vol.dims[0]; ++i) {
-        const int l = vol.at(i, j, k);
+        const int l = extended(i, j, k);
         auto& a = lo[l];
         auto& b = hi[l];
         a[0] = std::min(a[0], i); b[0] = std::max(b[0], i);
@@ -257,7 +340,7 @@ IndicatorField computeIndicatorFunctions(const PreprocessedVolume& vol,
       for (int y = 0; y < b.dims[1]; ++y)
         for (int x = 0; x < b.dims[0]; ++x)
           inside[size_t(x) + size_t(b.dims[0]) * (size_t(y) + size_t(b.dims[1]) * z)] =
-              vol.at(x + b.lo[0], y + b.lo[1], z + b.lo[2]) == m;
+              extended(x + b.lo[0], y + b.lo[1], z + b.lo[2]) == m;
     std::vector<float> dOut(n), dIn(n);
     for (size_t p = 0; p < n; ++p) {
       dOut[p] = inside[p] ? 0.f : kInf;

@@ -7,6 +7,13 @@
 /// at every voxel centre matches the label map: the smooth surfaces lose the staircase but never
 /// cross a voxel centre, i.e. they move less than half a voxel.
 ///
+/// The input volume's box bounds the domain exactly, with flat faces and sharp edges (a material
+/// cut by the volume's border ends on the box, not on a surface rounded by half a voxel): each
+/// f_m is computed from the labels extended past the box (every padding voxel takes the label of
+/// the nearest voxel inside the box), and value(), eval() and gradient() return max(f_0, d) for
+/// the outside label 0 and min(f_m, -d) for every material, d being the signed distance (mm) to
+/// the box (positive outside). The sign at every voxel centre still matches the label map.
+///
 /// Multi-material: a point belongs to argmax_m f_m; the interface of a and b is f_a = f_b >= others.
 /// Each f_m is stored only on its material's bounding box plus the band (memory follows size).
 /// Positions are local voxel indices of the PreprocessedVolume grid.
@@ -39,12 +46,17 @@ class IndicatorField {
 
   /// f_m at a voxel centre (local index); far negative outside m's box.
   float value(int m, int i, int j, int k) const;
-  /// f_m at the 8 voxel centres of the cell whose lowest corner is (i,j,k), x fastest.
+  /// Stored (unclipped) f_m at the 8 voxel centres of the cell whose lowest corner is (i,j,k),
+  /// x fastest.
   void corners(int m, int i, int j, int k, double out[8]) const;
   /// Trilinear f_m at a continuous local index.
   double eval(int m, const Vec3& l) const;
   /// Gradient of the trilinear f_m (per local index unit).
   Vec3 gradient(int m, const Vec3& l) const;
+  /// `l` moved exactly onto the input's box when it lies within `tolerance` mm of it (clamped
+  /// into the box, then onto the nearest face), else unchanged. Projections onto the box faces
+  /// stop within their tolerance; snapping makes points on a box face exactly coplanar.
+  Vec3 snapToBox(const Vec3& l, double tolerance) const;
   /// argmax_m f_m among the labels of the 8 voxel centres around l (outside the grid: 0).
   int argmax(const Vec3& l) const;
   /// Labels of the 8 voxel centres around l (sorted, unique; at most 8).
@@ -53,7 +65,16 @@ class IndicatorField {
  private:
   friend IndicatorField computeIndicatorFunctions(const PreprocessedVolume&,
                                                   const IndicatorParameters&, RunContext&);
+  /// Signed distance (mm) from a local position to the input's box, positive outside; its
+  /// gradient (per local index unit) in `grad` when not null. -inf when the box is unknown.
+  double boxDistance(const Vec3& l, Vec3* grad) const;
+  double clip(int m, double f, double d) const { return m == 0 ? std::max(f, d) : std::min(f, -d); }
+  /// The stored samples and their trilinear interpolant, before the box clip.
+  float valueRaw(int m, int i, int j, int k) const;
+  double evalRaw(int m, const Vec3& l) const;
+  Vec3 gradientRaw(int m, const Vec3& l) const;
   const PreprocessedVolume* vol_ = nullptr;
+  Vec3 boxLo_{{0, 0, 0}}, boxHi_{{0, 0, 0}};  ///< the input's box, local index units
   std::vector<Box> boxes_;
   float far_ = -1e3f;
 };

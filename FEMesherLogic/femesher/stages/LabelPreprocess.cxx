@@ -110,6 +110,7 @@ PreprocessedVolume preprocessLabels(const LabelVolume& in, const LabelPreprocess
   const int margin = std::max(2, params.margin);
   for (int a = 0; a < 3; ++a) {
     out.offset[a] = lo[a] - margin;
+    out.inputDims[a] = in.dims[a];
     out.dims[a] = hi[a] - lo[a] + 1 + 2 * margin;
   }
   out.labels.assign(size_t(out.dims[0]) * out.dims[1] * out.dims[2], 0);

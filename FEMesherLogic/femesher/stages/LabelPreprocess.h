@@ -30,6 +30,9 @@ struct PreprocessedVolume {
   Vec3 spacing{{1, 1, 1}};
   /// Index of local voxel (0,0,0) in the input grid (may be negative: padding).
   std::array<int, 3> offset{{0, 0, 0}};
+  /// Dims of the input grid (0 = unknown). The meshed domain is the input's box: voxel centres
+  /// 0..inputDims-1 plus half a voxel, i.e. local [-offset - 0.5, inputDims - offset - 0.5].
+  std::array<int, 3> inputDims{{0, 0, 0}};
   std::vector<uint16_t> labels;      ///< compact ids, x fastest
   std::vector<int32_t> userLabel;    ///< compact id -> user label id (entry 0: 0)
   std::vector<Material> materials;   ///< compact id -> material (entry 0: background)

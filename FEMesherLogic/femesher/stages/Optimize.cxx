@@ -501,7 +501,7 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
         Vec3 normal;
         for (int32_t v : T)
           if ((!m.fixedVertex(v) && smoothVertex(m, v)) ||
-              (m.fixedVertex(v) && flatPatch(m, v, params.peelDistance, normal) &&
+              (m.fixedVertex(v) && flatPatch(m, v, 1e-4 * params.peelDistance, normal) &&
                smoothVertex(m, v, &normal))) {
             ++r.smoothedVertices;
             changed = true;
