@@ -261,7 +261,7 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
       const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
       // Points on the input's box exactly on it (as buildBoundaryMesh does), so that the
       // particles below are the surface's vertices to the bit.
-      for (Vec3& l : particles) l = field->snapToBox(l, 2e-3 * smin);
+      for (Vec3& l : particles) l = field->snapToBox(l);
       surface = buildBoundaryMesh(*field, particles, samples, ctx, params.facetDistance * smin,
                                   &junctions, params.voxelRefinement);
       restrictedSeconds = std::chrono::duration<double>(Clock::now() - boundaryStart).count();
@@ -350,7 +350,7 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
       vm = buildVolumeMesh(surface, vp, ctx);
       st.done();
     }
-    // 6. Sliver removal (interfaces between materials kept).
+    // Sliver removal (interfaces between materials kept).
     OptimizeResult opt;
     {
       StageScope st(ctx, result.timings, "Optimize");

@@ -131,9 +131,9 @@ TEST(IndicatorFunctions, InputBoxIsExactFlatAndSharp) {
   }
   EXPECT_GT(F(-0.45, -0.45, -0.45), 0) << "the corner is rounded";
   // Snapping: a point 1e-4 mm off the face lands on it; a point 0.1 voxel off stays.
-  const Vec3 near{-0.5 - pv.offset[0] + 2e-4, 4.2 - pv.offset[1], 3 - pv.offset[2]};
+  const Vec3 near{-0.5 - pv.offset[0] + 2e-4, 4.2 - pv.offset[1], 3.0 - pv.offset[2]};
   EXPECT_EQ(f.snapToBox(near, 1e-3)[0], -0.5 - pv.offset[0]);
-  const Vec3 far{-0.4 - pv.offset[0], 4.2 - pv.offset[1], 3 - pv.offset[2]};
+  const Vec3 far{-0.4 - pv.offset[0], 4.2 - pv.offset[1], 3.0 - pv.offset[2]};
   EXPECT_EQ(f.snapToBox(far, 1e-3), far);
 }
 

@@ -274,12 +274,9 @@ std::vector<uint32_t> mortonOrder(const std::vector<Vec3>& points, double cell) 
 
 /// A canonical point within 0.002 voxel of the input's box, put exactly on it (below every
 /// projection tolerance; box faces become exactly planar, so no flat Delaunay tets lie on them).
-double snapTolerance(const PreprocessedVolume& vol) {
-  return 2e-3 * std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
-}
 Vec3 snapToBox(const IndicatorField& field, const Vec3& canonical) {  // unchanged when not snapped
   const PreprocessedVolume& vol = field.volume();
-  const Vec3 l = vol.canonicalToLocal(canonical), q = field.snapToBox(l, snapTolerance(vol));
+  const Vec3 l = vol.canonicalToLocal(canonical), q = field.snapToBox(l);
   return q == l ? canonical : vol.localToCanonical(q);
 }
 
@@ -910,7 +907,7 @@ BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector
   std::vector<std::pair<Point, int32_t>> pts;
   pts.reserve(points.size());
   for (const Vec3& l : points) {
-    const Vec3 c = vol.localToCanonical(field.snapToBox(l, snapTolerance(vol)));
+    const Vec3 c = vol.localToCanonical(field.snapToBox(l));
     pts.emplace_back(Point(c[0], c[1], c[2]), int32_t(pts.size()));
   }
   const bool particlesAreVertices = pts.size() >= 4;
@@ -918,7 +915,7 @@ BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector
     // Tiny inputs: the sampling spacing exceeds the whole structure; use every interface vertex.
     pts.clear();
     for (const auto& smp : samples.all) {
-      const Vec3 c = vol.localToCanonical(field.snapToBox(smp.local, snapTolerance(vol)));
+      const Vec3 c = vol.localToCanonical(field.snapToBox(smp.local));
       pts.emplace_back(Point(c[0], c[1], c[2]), int32_t(pts.size()));
     }
   }

@@ -72,8 +72,8 @@ struct BoundarySurface {
 };
 
 /// `points`: the particles (local voxel index positions); a point within 0.002 voxel of the
-/// input's box is put exactly on it (IndicatorField::snapToBox), and so is every refinement point. `dense`: every interface vertex, used
-/// to repair labels that the particles miss. `facetDistance` (mm, 0 = off): refine the surface
+/// input's box is put exactly on it (IndicatorField::snapToBox), and so is every refinement
+/// point. `dense`: every interface vertex, used to repair labels that the particles miss. `facetDistance` (mm, 0 = off): refine the surface
 /// until every interface triangle's centroid is within this distance of the interface f_a = f_b
 /// (points inserted on the interface, farthest first, never closer than half the triangle's
 /// shortest edge to another vertex; at most 10 rounds), then the voxel centres (each next to

@@ -219,6 +219,11 @@ Vec3 IndicatorField::snapToBox(const Vec3& l, double tolerance) const {
   return q;
 }
 
+Vec3 IndicatorField::snapToBox(const Vec3& l) const {
+  const Vec3& s = vol_->spacing;
+  return snapToBox(l, 2e-3 * std::min({s[0], s[1], s[2]}));
+}
+
 float IndicatorField::value(int m, int i, int j, int k) const {
   return float(clip(m, valueRaw(m, i, j, k), boxDistance({double(i), double(j), double(k)}, nullptr)));
 }

@@ -57,6 +57,9 @@ class IndicatorField {
   /// into the box, then onto the nearest face), else unchanged. Projections onto the box faces
   /// stop within their tolerance; snapping makes points on a box face exactly coplanar.
   Vec3 snapToBox(const Vec3& l, double tolerance) const;
+  /// snapToBox with the tolerance every stage uses: 0.002 voxel of the smallest spacing, below
+  /// every projection tolerance (so points on a box face are exactly coplanar).
+  Vec3 snapToBox(const Vec3& l) const;
   /// argmax_m f_m among the labels of the 8 voxel centres around l (outside the grid: 0).
   int argmax(const Vec3& l) const;
   /// Labels of the 8 voxel centres around l (sorted, unique; at most 8).

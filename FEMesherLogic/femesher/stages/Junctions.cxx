@@ -2,6 +2,7 @@
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
 #include <femesher/SpatialHash.h>
+#include <femesher/VecMath.h>
 #include <femesher/stages/Junctions.h>
 
 #include <algorithm>
@@ -27,11 +28,6 @@ struct Eval {
   }
 };
 
-double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-Vec3 cross(const Vec3& a, const Vec3& b) {
-  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
 
 /// Gauss-Newton for f_l[0] = f_l[1] = ... = f_l[n-1] (n = 3 or 4) from `x` (local coordinates).
 bool solveJunction(const Eval& e, const uint16_t* l, int n, Vec3& x, double tol) {

@@ -9,6 +9,7 @@
 #include <CGAL/intersections.h>
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
+#include <femesher/VecMath.h>
 #include <femesher/stages/LocalDelaunay.h>
 
 #include <algorithm>
@@ -38,14 +39,6 @@ using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, int32_t>;
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kTwoPi = 2 * kPi;
 
-double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-Vec3 add(const Vec3& a, const Vec3& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
-Vec3 scale(const Vec3& a, double s) { return {a[0] * s, a[1] * s, a[2] * s}; }
-Vec3 cross(const Vec3& a, const Vec3& b) {
-  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
 Vec3 normalized(const Vec3& a) {
   const double l = norm(a);
   return l > 0 ? scale(a, 1.0 / l) : Vec3{0, 0, 0};

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/RunContext.h>
+#include <femesher/VecMath.h>
 #include <femesher/stages/Optimize.h>
 
 #include <algorithm>
@@ -14,12 +15,6 @@ namespace {
 constexpr double kRadToDeg = 57.29577951308232;
 constexpr double kEps = 1e-6;  // degrees: smallest improvement that counts
 
-Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
-Vec3 cross(const Vec3& a, const Vec3& b) {
-  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
-double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
 
 /// Mutable tet mesh with vertex -> tet incidence; faces are found by intersecting incidences.
 class Editor {
@@ -439,12 +434,10 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
                                std::vector<int32_t>& labels, const OptimizeParameters& params,
                                RunContext& ctx) {
   OptimizeResult r;
-  auto survey = [&](const std::vector<char>* alive, size_t& below, size_t& below5, double& mn) {
+  auto survey = [&](size_t& below, size_t& below5, double& mn) {
     below = below5 = 0;
     mn = tets.empty() ? 0 : 1e300;
-    for (size_t t = 0; t < tets.size(); ++t) {
-      if (alive && !(*alive)[t]) continue;
-      const auto& T = tets[t];
+    for (const auto& T : tets) {
       const double q = std::max(0.0, tetMinDihedral(points[size_t(T[0])], points[size_t(T[1])],
                                                     points[size_t(T[2])], points[size_t(T[3])]));
       mn = std::min(mn, q);
@@ -452,7 +445,7 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
       below5 += q < 5;
     }
   };
-  survey(nullptr, r.tetsBelowTargetBefore, r.tetsBelow5Before, r.minDihedralBefore);
+  survey(r.tetsBelowTargetBefore, r.tetsBelow5Before, r.minDihedralBefore);
   if (params.targetMinDihedral <= 0 || r.tetsBelowTargetBefore == 0) {
     r.tetsBelowTargetAfter = r.tetsBelowTargetBefore;
     r.tetsBelow5After = r.tetsBelow5Before;
@@ -539,7 +532,7 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
   points.swap(keptPoints);
   tets.swap(keptTets);
   labels.swap(keptLabels);
-  survey(nullptr, r.tetsBelowTargetAfter, r.tetsBelow5After, r.minDihedralAfter);
+  survey(r.tetsBelowTargetAfter, r.tetsBelow5After, r.minDihedralAfter);
   ctx.progress(1.0);
   return r;
 }

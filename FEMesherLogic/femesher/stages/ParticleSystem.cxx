@@ -2,6 +2,7 @@
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
 #include <femesher/SpatialHash.h>
+#include <femesher/VecMath.h>
 #include <femesher/stages/ParticleSystem.h>
 
 #include <algorithm>
@@ -36,7 +37,6 @@ double kernelSecondDerivative(double r, double s) {
   return w * w * 2.0 * c / (sn * sn);
 }
 
-double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 
 /// Median of `v` (`fallback` when empty): the neighbour grids use it as their cell size.
 double median(std::vector<double> v, double fallback) {
