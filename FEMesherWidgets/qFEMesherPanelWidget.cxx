@@ -3,6 +3,7 @@
 
 #include "qFEMesherRunner.h"
 
+#include <femesher/StageTable.h>
 #include <femesher/io/AtomicFile.h>
 #include <femesher/io/LabelMapIO.h>
 #include <femesher/io/MeshIO.h>
@@ -108,25 +109,32 @@ qFEMesherPanelWidget::qFEMesherPanelWidget(QWidget* parent) : QWidget(parent) {
   auto* matLayout = new QVBoxLayout(matBox);
   table_ = new QTableWidget(0, ColumnCount, matBox);
   table_->setHorizontalHeaderLabels({tr("Mesh"), tr("Label"), tr("Name"), tr("Colour"),
-                                     tr("Voxels"), tr("Size \u00d7"),
+                                     tr("Voxels"), tr("If excluded"),
                                      tr("E (MPa)"), tr("\u03bd")});
   table_->verticalHeader()->setVisible(false);
   table_->setSelectionBehavior(QAbstractItemView::SelectRows);
   table_->horizontalHeader()->setSectionResizeMode(QHeaderView::Fixed);
   table_->horizontalHeader()->setSectionResizeMode(ColName, QHeaderView::Stretch);
   table_->horizontalHeader()->setMinimumSectionSize(24);
-  const int widths[ColumnCount] = {40, 44, 90, 48, 64, 56, 78, 64};
+  const int widths[ColumnCount] = {40, 44, 90, 48, 64, 96, 78, 64};
   for (int c = 0; c < ColumnCount; ++c)
     if (c != ColName) table_->setColumnWidth(c, widths[c]);
   table_->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
   table_->horizontalHeaderItem(ColMesh)->setToolTip(
-      tr("Unticked materials are turned into background before meshing (they leave a cavity)"));
-  table_->horizontalHeaderItem(ColScale)->setToolTip(
-      tr("Relative element size for this material. Recorded in the panel only: the pipeline "
-         "does not have per-material sizing yet, so it does not change the mesh."));
+      tr("Unticked materials are not meshed: see 'If excluded' for what becomes of them"));
+  table_->horizontalHeaderItem(ColExclude)->setToolTip(
+      tr("For an unticked material: 'Background' leaves a cavity (or cuts it away); 'Merge' gives "
+         "its voxels to the neighbouring material (the run's warnings say which). Saved with the "
+         "parameters as material.<label>.exclude."));
   table_->horizontalHeaderItem(ColE)->setToolTip(
       tr("Young's modulus written to Abaqus/CalculiX (.inp) and FEBio (.feb) exports"));
   table_->horizontalHeaderItem(ColNu)->setToolTip(tr("Poisson ratio written to .inp and .feb exports"));
+  // "If excluded" applies to unticked materials only.
+  connect(table_, &QTableWidget::itemChanged, this, [this](QTableWidgetItem* item) {
+    if (item->column() != ColMesh) return;
+    if (QWidget* w = table_->cellWidget(item->row(), ColExclude))
+      w->setEnabled(item->checkState() != Qt::Checked);
+  });
   table_->setMinimumHeight(120);
   table_->setMaximumHeight(230);
   matLayout->addWidget(table_);
@@ -373,7 +381,7 @@ void qFEMesherPanelWidget::fillMaterialTable() {
     voxels->setData(Qt::DisplayRole, qulonglong(s.voxels));
     voxels->setFlags(Qt::ItemIsEnabled | Qt::ItemIsSelectable);
     voxels->setTextAlignment(Qt::AlignRight | Qt::AlignVCenter);
-    if (int64_t(s.voxels) < p.minVoxels) {
+    if (int64_t(s.voxels) < p.preprocess.minVoxels) {
       voxels->setForeground(QColor(190, 30, 30));
       voxels->setToolTip(tr("Fewer than the minimum voxels: this label will be dropped"));
     }
@@ -384,13 +392,18 @@ void qFEMesherPanelWidget::fillMaterialTable() {
     table_->setItem(row, ColVoxels, voxels);
     name->setToolTip(tr("Label %1: %2 voxels, %3 mm\u00b3").arg(s.id).arg(qulonglong(s.voxels))
                          .arg(s.volumeMm3, 0, 'f', 1));
-    auto* scale = new QDoubleSpinBox(table_);
-    scale->setRange(0.1, 10.0);
-    scale->setSingleStep(0.1);
-    scale->setValue(1.0);
-    scale->setFrame(false);
-    scale->setToolTip(table_->horizontalHeaderItem(ColScale)->toolTip());
-    table_->setCellWidget(row, ColScale, scale);
+    auto* exclude = new QComboBox(table_);
+    exclude->addItem(tr("Background"), int(femesher::Exclusion::Background));
+    exclude->addItem(tr("Merge"), int(femesher::Exclusion::MergeIntoNeighbour));
+    exclude->setFrame(false);
+    exclude->setToolTip(table_->horizontalHeaderItem(ColExclude)->toolTip());
+    auto ex = p.preprocess.excluded.find(s.id);
+    if (ex != p.preprocess.excluded.end()) {
+      include->setCheckState(Qt::Unchecked);
+      exclude->setCurrentIndex(exclude->findData(int(ex->second)));
+    }
+    exclude->setEnabled(include->checkState() != Qt::Checked);
+    table_->setCellWidget(row, ColExclude, exclude);
     auto it = p.materialProperties.find(s.id);
     auto* e = new QDoubleSpinBox(table_);
     e->setRange(0.0, 1e7);
@@ -429,26 +442,18 @@ bool qFEMesherPanelWidget::isMaterialIncluded(int32_t id) const {
   return r >= 0 && table_->item(r, ColMesh)->checkState() == Qt::Checked;
 }
 
-double qFEMesherPanelWidget::materialSizeScale(int32_t id) const {
+void qFEMesherPanelWidget::setMaterialExclusion(int32_t id, femesher::Exclusion how) {
   const int r = materialRow(id);
-  if (r < 0) return 1.0;
-  return static_cast<QDoubleSpinBox*>(table_->cellWidget(r, ColScale))->value();
+  if (r < 0) return;
+  auto* combo = static_cast<QComboBox*>(table_->cellWidget(r, ColExclude));
+  combo->setCurrentIndex(combo->findData(int(how)));
 }
 
-std::shared_ptr<const femesher::LabelVolume> qFEMesherPanelWidget::volumeToMesh() const {
-  if (!volume_) return nullptr;
-  std::set<int32_t> excluded;
-  for (int r = 0; r < table_->rowCount(); ++r)
-    if (table_->item(r, ColMesh)->checkState() != Qt::Checked)
-      excluded.insert(table_->item(r, ColMesh)->data(Qt::UserRole).toInt());
-  if (excluded.empty()) return volume_;
-  auto copy = std::make_shared<femesher::LabelVolume>(*volume_);
-  for (int32_t& l : copy->labels)
-    if (excluded.count(l)) l = 0;
-  copy->materials.erase(std::remove_if(copy->materials.begin(), copy->materials.end(),
-                                       [&](const femesher::Material& m) { return excluded.count(m.id) > 0; }),
-                        copy->materials.end());
-  return copy;
+femesher::Exclusion qFEMesherPanelWidget::materialExclusion(int32_t id) const {
+  const int r = materialRow(id);
+  if (r < 0) return femesher::Exclusion::Background;
+  return femesher::Exclusion(
+      static_cast<QComboBox*>(table_->cellWidget(r, ColExclude))->currentData().toInt());
 }
 
 // --- parameters -----------------------------------------------------------------------------------
@@ -494,6 +499,14 @@ femesher::MeshingParameters qFEMesherPanelWidget::parameters() const {
   // Materials not in the table (e.g. from a loaded parameter file) are kept.
   for (const auto& [id, props] : hidden_.materialProperties)
     if (materialRow(id) < 0) p.materialProperties[id] = props;
+  p.preprocess.excluded.clear();
+  for (const auto& [id, how] : hidden_.preprocess.excluded)
+    if (materialRow(id) < 0) p.preprocess.excluded[id] = how;
+  for (int r = 0; r < table_->rowCount(); ++r) {
+    const int32_t id = table_->item(r, ColMesh)->data(Qt::UserRole).toInt();
+    if (table_->item(r, ColMesh)->checkState() != Qt::Checked)
+      p.preprocess.excluded[id] = materialExclusion(id);
+  }
   return p;
 }
 
@@ -509,6 +522,9 @@ void qFEMesherPanelWidget::setParameters(const femesher::MeshingParameters& para
         ->setValue(it != params.materialProperties.end() ? it->second.youngsModulus : 0.0);
     static_cast<QDoubleSpinBox*>(table_->cellWidget(r, ColNu))
         ->setValue(it != params.materialProperties.end() ? it->second.poissonRatio : -1.0);
+    auto ex = params.preprocess.excluded.find(id);
+    setMaterialIncluded(id, ex == params.preprocess.excluded.end());
+    if (ex != params.preprocess.excluded.end()) setMaterialExclusion(id, ex->second);
   }
   updating_ = false;
   const QString match = matchingPreset();
@@ -519,12 +535,13 @@ void qFEMesherPanelWidget::setParameters(const femesher::MeshingParameters& para
 QString qFEMesherPanelWidget::matchingPreset() const {
   femesher::MeshingParameters mine = parameters();
   mine.materialProperties.clear();
+  mine.preprocess.excluded.clear();
   for (const auto& name : femesher::presetNames()) {
     auto preset = femesher::presetParameters(name);
     if (!preset) continue;
     femesher::MeshingParameters p = preset.value();
     p.defaultMaterial = mine.defaultMaterial;  // material properties are not part of a preset
-    p.threads = mine.threads;                  // neither is the thread count
+    p.run.threads = mine.run.threads;          // neither is the thread count
     if (femesher::parametersToJson(p) == femesher::parametersToJson(mine))
       return QString::fromStdString(name);
   }
@@ -538,7 +555,8 @@ bool qFEMesherPanelWidget::applyPreset(const QString& name) {
   const femesher::MeshingParameters current = parameters();
   p.defaultMaterial = current.defaultMaterial;
   p.materialProperties = current.materialProperties;
-  p.threads = current.threads;
+  p.preprocess.excluded = current.preprocess.excluded;
+  p.run.threads = current.run.threads;
   setParameters(p);
   return true;
 }
@@ -557,7 +575,7 @@ void qFEMesherPanelWidget::onParameterEdited() {
   updateSizeHint();
   // The minimum voxel count colours the table.
   if (sender() == editors_.value(QStringLiteral("min_voxels"))) {
-    const auto minVoxels = parameters().minVoxels;
+    const auto minVoxels = parameters().preprocess.minVoxels;
     for (int r = 0; r < table_->rowCount(); ++r) {
       auto* item = table_->item(r, ColVoxels);
       const bool small = item->data(Qt::DisplayRole).toLongLong() < minVoxels;
@@ -573,9 +591,9 @@ void qFEMesherPanelWidget::updateSizeHint() {
   if (volume_) {
     const auto& s = volume_->spacing;
     const double mean = (s[0] + s[1] + s[2]) / 3.0;
-    const double h = p.targetEdgeLength > 0 ? p.targetEdgeLength : p.edgeLengthFactor * mean;
+    const double h = femesher::uniformEdgeLength(*volume_, p.sizing);
     text = tr("Elements about %1 mm across (voxels are %2 mm); smoothing about %3 mm.")
-               .arg(h, 0, 'f', 2).arg(mean, 0, 'f', 2).arg(p.smoothingSigma * mean, 0, 'f', 2);
+               .arg(h, 0, 'f', 2).arg(mean, 0, 'f', 2).arg(p.indicators.sigma * mean, 0, 'f', 2);
   } else {
     text = tr("Element size 'Automatic' = the factor below \u00d7 the mean voxel spacing.");
   }
@@ -626,17 +644,8 @@ void qFEMesherPanelWidget::loadParametersClicked() {
 // --- run --------------------------------------------------------------------------------------------
 
 QString qFEMesherPanelWidget::stageTitle(const QString& stage) {
-  static const QMap<QString, QString> titles = {
-      {QStringLiteral("LabelPreprocess"), tr("Preparing labels")},
-      {QStringLiteral("IndicatorFunctions"), tr("Smoothing the interfaces")},
-      {QStringLiteral("SurfaceSampling"), tr("Sampling the surfaces")},
-      {QStringLiteral("Junctions"), tr("Finding triple lines")},
-      {QStringLiteral("ParticleSystem"), tr("Particles settling")},
-      {QStringLiteral("BoundaryMesh"), tr("Meshing the surfaces")},
-      {QStringLiteral("VolumeMesh"), tr("Filling with tetrahedra")},
-      {QStringLiteral("Quality"), tr("Measuring quality")},
-      {QStringLiteral("Fidelity"), tr("Comparing with the labels")}};
-  return titles.value(stage, stage);
+  const femesher::StageInfo* info = femesher::findStage(stage.toStdString());
+  return info ? QString::fromUtf8(info->title) : stage;
 }
 
 bool qFEMesherPanelWidget::isRunning() const { return runner_->isRunning(); }
@@ -652,11 +661,14 @@ bool qFEMesherPanelWidget::run() {
     showError(QString::fromStdString(s.message()));
     return false;
   }
-  auto input = volumeToMesh();
-  if (input->materials.empty()) {
+  bool anyIncluded = false;
+  for (int r = 0; r < table_->rowCount(); ++r)
+    anyIncluded |= table_->item(r, ColMesh)->checkState() == Qt::Checked;
+  if (!anyIncluded) {
     showError(tr("Every material is unticked: tick at least one to mesh."));
     return false;
   }
+  std::shared_ptr<const femesher::LabelVolume> input = volume_;
   result_.reset();
   warnings_->clear();
   progress_->setValue(0);

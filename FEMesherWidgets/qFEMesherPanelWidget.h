@@ -10,10 +10,11 @@
 /// parameter files are `parametersToJson` output and are accepted by `femesher mesh --parameters`.
 ///
 /// Material table: id, name, colour, voxel count and volume (from `summarizeLabelMap`), a
-/// "Mesh" checkbox (an excluded material is turned into background before the run, so it leaves
-/// a cavity), a size scale (kept in the panel only: the logic has no per-material sizing field
-/// yet) and Young's modulus / Poisson ratio (into `MeshingParameters::materialProperties`, written
-/// to INP/FEB exports).
+/// "Mesh" checkbox and, for an unticked material, what becomes of it ("background": a cavity or
+/// a cut; "merge": its voxels join the neighbouring material): both are the parameter
+/// `material.<label>.exclude`, so a saved parameter file reproduces the panel's run from the CLI;
+/// Young's modulus / Poisson ratio (into `MeshingParameters::materialProperties`, written to
+/// INP/FEB exports).
 ///
 /// Long work runs in `qFEMesherRunner` (worker thread); the panel never blocks. Errors are shown
 /// inline (no modal dialogs) so the panel can be driven by tests and scripts.
@@ -47,7 +48,7 @@ class qFEMesherPanelWidget : public QWidget {
   Q_OBJECT
  public:
   /// Material table columns.
-  enum Column { ColMesh = 0, ColId, ColName, ColColor, ColVoxels, ColScale, ColE, ColNu, ColumnCount };
+  enum Column { ColMesh = 0, ColId, ColName, ColColor, ColVoxels, ColExclude, ColE, ColNu, ColumnCount };
 
   explicit qFEMesherPanelWidget(QWidget* parent = nullptr);
   ~qFEMesherPanelWidget() override;
@@ -82,9 +83,9 @@ class qFEMesherPanelWidget : public QWidget {
   int materialRow(int32_t id) const;
   void setMaterialIncluded(int32_t id, bool included);
   bool isMaterialIncluded(int32_t id) const;
-  double materialSizeScale(int32_t id) const;
-  /// The volume actually meshed: excluded materials turned into background.
-  std::shared_ptr<const femesher::LabelVolume> volumeToMesh() const;
+  /// What becomes of an unticked material (ignored while it is ticked).
+  void setMaterialExclusion(int32_t id, femesher::Exclusion how);
+  femesher::Exclusion materialExclusion(int32_t id) const;
 
   // --- run ----------------------------------------------------------------------------------------
   bool run();
@@ -98,7 +99,8 @@ class qFEMesherPanelWidget : public QWidget {
   QPushButton* cancelButton() const { return cancelButton_; }
   /// "idle", "running", "succeeded", "failed", "canceled".
   QString runState() const { return state_; }
-  /// Plain-words name of a pipeline stage ("ParticleSystem" -> "Particles settling").
+  /// Plain-words name of a pipeline stage ("ParticleSystem" -> "Particles settling"), from the
+  /// logic's stage table.
   static QString stageTitle(const QString& stage);
 
   // --- export -------------------------------------------------------------------------------------

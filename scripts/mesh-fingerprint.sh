@@ -19,20 +19,24 @@ VOLUMES="${FINGERPRINT_VOLUMES:-phantom mickey spheres_argmax knee}"
 [ -x "$CLI" ] || { echo "mesh-fingerprint: no femesher in $BUILD/bin (build first)" >&2; exit 2; }
 WORK="$(mktemp -d)"
 trap 'rm -rf "$WORK"' EXIT
+# Paths inside the work folder are relative: the writers record the input's path, which must not
+# depend on where the data or the temporary folder are.
+mkdir -p "$WORK/in"
+cd "$WORK"
 
 input_of() {
   case "$1" in
-    phantom) "$CLI" phantom "$WORK/phantom.nrrd" >/dev/null; echo "$WORK/phantom.nrrd" ;;
-    mickey) echo "$DATA/mickey.nrrd" ;;
-    spheres_argmax) echo "$DATA/spheres_argmax.nrrd" ;;
-    knee) echo "$DATA/9135902_00m_WB01.nii.gz" ;;
+    phantom) "$CLI" phantom in/phantom.nrrd >/dev/null 2>&1; echo in/phantom.nrrd ;;
+    mickey) cp "$DATA/mickey.nrrd" in/; echo in/mickey.nrrd ;;
+    spheres_argmax) cp "$DATA/spheres_argmax.nrrd" in/; echo in/spheres_argmax.nrrd ;;
+    knee) cp "$DATA/9135902_00m_WB01.nii.gz" in/; echo in/9135902_00m_WB01.nii.gz ;;
     *) echo "mesh-fingerprint: unknown volume '$1'" >&2; exit 2 ;;
   esac
 }
 
 for v in $VOLUMES; do
   in="$(input_of "$v")"
-  out="$WORK/$v"
+  out="$v"
   mkdir -p "$out"
   "$CLI" mesh "$in" --threads "$THREADS" -o "$out/m.vtu" -o "$out/m.inp" -o "$out/m.msh" \
     -o "$out/m.mesh" -o "$out/m.feb" -o "$out/m.stl" -o "$out/m.vtk" \

@@ -185,8 +185,8 @@ Result<MeshingParameters> buildParameters(const MeshOptions& o) {
     Status s = setParameter(params, key, value);
     if (!s) return s;
   }
-  if (o.threads >= 0) params.threads = o.threads;
-  if (o.seed >= 0) params.seed = uint64_t(o.seed);
+  if (o.threads >= 0) params.run.threads = o.threads;
+  if (o.seed >= 0) params.run.seed = uint64_t(o.seed);
   if (Status s = validate(params); !s) return s;
   return params;
 }
@@ -368,26 +368,28 @@ int runMedialAxis(const std::string& input, const std::string& output, const std
   return 0;
 }
 
-/// `femesher sizing`: the adaptive sizing field (target edge length, mm) as a float image.
+/// `femesher sizing`: the adaptive sizing field (target edge length, mm) as a float image: the
+/// field a mesh run with the same parameters uses, on its working grid (the labelled box plus a
+/// margin), placed in the input's physical space.
 int runSizing(const std::string& input, const std::string& output, const MeshOptions& o) {
   auto params = buildParameters(o);
   if (!params) return fail(params.status());
   auto volume = readLabelMap(input);
   if (!volume) return fail(volume.status());
-  const auto& v = volume.value();
-  const MeshingParameters& p = params.value();
-  const double mean = (v.spacing[0] + v.spacing[1] + v.spacing[2]) / 3.0;
-  const double h = p.targetEdgeLength > 0 ? p.targetEdgeLength : p.edgeLengthFactor * mean;
-  SizingParameters sp;
-  sp.scale = p.sizingScale;
-  sp.hMin = p.sizingHMin > 0 ? p.sizingHMin : 0.5 * h;
-  sp.hMax = p.sizingHMax > 0 ? p.sizingHMax : 2.5 * h;
-  sp.gradation = p.gradation;
-  sp.threads = p.threads;
+  MeshingParameters p = params.value();
+  p.sizing.mode = SizingMode::Adaptive;
   RunContext ctx;
-  auto field = computeSizingField(v, sp, ctx);
-  if (!field) return fail(field.status());
-  if (Status s = writeScalarVolume(v, field->h, output); !s) return fail(s);
+  std::shared_ptr<const SizingField> field;
+  LabelVolume geometry;
+  if (Status s = runGuarded([&] {
+        MeshingRun run(volume.value(), p, ctx);
+        run.runThrough(StageId::SizingField);
+        field = run.state().sizingField;
+        geometry = run.sizingFieldGeometry();
+      });
+      !s)
+    return fail(s);
+  if (Status s = writeScalarVolume(geometry, field->h, output); !s) return fail(s);
   const auto [mn, mx] = std::minmax_element(field->h.begin(), field->h.end());
   std::fprintf(stderr, "wrote %s: target edge length %.3g .. %.3g mm (%zu medial voxels)\n",
                output.c_str(), *mn, *mx, field->medialVoxels);

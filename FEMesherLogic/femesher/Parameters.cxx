@@ -40,121 +40,121 @@ const std::vector<Binding>& bindings() {
     add({"min_voxels", "int", "voxels", "", 1, 1e12, "Smallest label kept",
          "Labels with fewer voxels are dropped (their voxels join the most common neighbouring "
          "label) with a warning naming them; every other label appears in the mesh.", false},
-        [](MeshingParameters& p, double x) { p.minVoxels = int64_t(x); },
-        [](const MeshingParameters& p) { return double(p.minVoxels); });
+        [](MeshingParameters& p, double x) { p.preprocess.minVoxels = int64_t(x); },
+        [](const MeshingParameters& p) { return double(p.preprocess.minVoxels); });
     add({"smoothing_sigma", "double", "voxels", "", 0, 3, "Surface smoothing",
          "Gaussian smoothing of each material's signed distance, in voxels. 0 = the trilinear "
          "signed distance (sub-voxel already); 0.5-1 rounds the staircase more but shrinks thin "
          "and small labels (surfaces never pass a voxel centre).",
          true},
-        [](MeshingParameters& p, double x) { p.smoothingSigma = x; },
-        [](const MeshingParameters& p) { return p.smoothingSigma; });
+        [](MeshingParameters& p, double x) { p.indicators.sigma = x; },
+        [](const MeshingParameters& p) { return p.indicators.sigma; });
     add({"target_edge_length", "double", "mm", "", 0, 1e6, "Element size",
          "Target edge length of the surface triangles in mm. Smaller = finer mesh. 0 = automatic "
          "(edge_length_factor x the mean voxel spacing).", false},
-        [](MeshingParameters& p, double x) { p.targetEdgeLength = x; },
-        [](const MeshingParameters& p) { return p.targetEdgeLength; });
+        [](MeshingParameters& p, double x) { p.sizing.targetEdgeLength = x; },
+        [](const MeshingParameters& p) { return p.sizing.targetEdgeLength; });
     add({"edge_length_factor", "double", "voxels", "", 0.5, 50, "Element size (voxels)",
          "Automatic element size as a multiple of the mean voxel spacing, used when "
          "target_edge_length is 0.", false},
-        [](MeshingParameters& p, double x) { p.edgeLengthFactor = x; },
-        [](const MeshingParameters& p) { return p.edgeLengthFactor; });
+        [](MeshingParameters& p, double x) { p.sizing.edgeLengthFactor = x; },
+        [](const MeshingParameters& p) { return p.sizing.edgeLengthFactor; });
     add({"sizing_scale", "double", "", "", 0.05, 5, "Detail (sizing scale)",
          "Adaptive sizing: target edge length = sizing_scale x local feature size (distance to the "
          "nearest medial axis). Smaller = more detail in thin and curved parts.", false},
-        [](MeshingParameters& p, double x) { p.sizingScale = x; },
-        [](const MeshingParameters& p) { return p.sizingScale; });
+        [](MeshingParameters& p, double x) { p.sizing.scale = x; },
+        [](const MeshingParameters& p) { return p.sizing.scale; });
     add({"h_min", "double", "mm", "", 0, 1e6, "Smallest element",
          "Adaptive sizing: lower bound of the edge length in mm (0 = half the uniform edge length).",
          true},
-        [](MeshingParameters& p, double x) { p.sizingHMin = x; },
-        [](const MeshingParameters& p) { return p.sizingHMin; });
+        [](MeshingParameters& p, double x) { p.sizing.hMin = x; },
+        [](const MeshingParameters& p) { return p.sizing.hMin; });
     add({"h_max", "double", "mm", "", 0, 1e6, "Largest element",
          "Adaptive sizing: upper bound of the edge length in mm (0 = edge_length_factor x 2.5 x "
          "the mean voxel spacing).", true},
-        [](MeshingParameters& p, double x) { p.sizingHMax = x; },
-        [](const MeshingParameters& p) { return p.sizingHMax; });
+        [](MeshingParameters& p, double x) { p.sizing.hMax = x; },
+        [](const MeshingParameters& p) { return p.sizing.hMax; });
     add({"gradation", "double", "", "", 0.01, 10, "Size gradation",
          "Adaptive sizing: the edge length grows at most this many mm per mm away from fine parts.",
          true},
-        [](MeshingParameters& p, double x) { p.gradation = x; },
-        [](const MeshingParameters& p) { return p.gradation; });
+        [](MeshingParameters& p, double x) { p.sizing.gradation = x; },
+        [](const MeshingParameters& p) { return p.sizing.gradation; });
     add({"volume_sizing", "bool", "", "", 0, 1, "Size the interior too",
          "Adaptive sizing: hand the sizing field to TetGen (-m) so the interior follows it too "
          "(more tets); off: the interior is graded from the surface by TetGen's quality bound.",
          true},
-        [](MeshingParameters& p, double x) { p.volumeSizing = x != 0; },
-        [](const MeshingParameters& p) { return p.volumeSizing ? 1.0 : 0.0; });
+        [](MeshingParameters& p, double x) { p.sizing.volumeSizing = x != 0; },
+        [](const MeshingParameters& p) { return p.sizing.volumeSizing ? 1.0 : 0.0; });
     add({"particle_iterations", "int", "", "", 0, 1000, "Particle iterations",
          "Maximum iterations of the surface particle system (it stops earlier when converged); "
          "0 uses the initial samples as they are.", true},
-        [](MeshingParameters& p, double x) { p.particleIterations = int(x); },
-        [](const MeshingParameters& p) { return double(p.particleIterations); });
+        [](MeshingParameters& p, double x) { p.particles.maxIterations = int(x); },
+        [](const MeshingParameters& p) { return double(p.particles.maxIterations); });
     add({"facet_distance", "double", "voxels", "", 0, 10, "Surface accuracy",
          "Largest distance, in voxels, between an interface triangle's centroid and the smooth "
          "interface; triangles farther off get a point inserted on the interface (surface "
          "refinement after the particle system). Smaller = thin and curved parts follow the labels "
          "more closely, at more elements. 0 = no refinement.", true},
-        [](MeshingParameters& p, double x) { p.facetDistance = x; },
-        [](const MeshingParameters& p) { return p.facetDistance; });
+        [](MeshingParameters& p, double x) { p.boundary.facetDistance = x; },
+        [](const MeshingParameters& p) { return p.boundary.facetDistance; });
     add({"voxel_refinement", "bool", "", "", 0, 1, "Voxel-exact surfaces",
          "Insert interface points until every voxel centre next to another label lies in a tet of "
          "its own label (the mesh reproduces the label map at the voxel centres; Dice close to 1). "
          "Off: fewer surface points, fidelity set by facet_distance alone.", true},
-        [](MeshingParameters& p, double x) { p.voxelRefinement = x != 0; },
-        [](const MeshingParameters& p) { return p.voxelRefinement ? 1.0 : 0.0; });
+        [](MeshingParameters& p, double x) { p.boundary.voxelRefinement = x != 0; },
+        [](const MeshingParameters& p) { return p.boundary.voxelRefinement ? 1.0 : 0.0; });
     add({"max_radius_edge_ratio", "double", "", "", 0, 10, "Quality bound (radius-edge)",
          "TetGen's bound on the circumradius / shortest edge of each tet (-q). 0 disables quality "
          "refinement. Values below about 1.2 may not terminate.", true},
-        [](MeshingParameters& p, double x) { p.maxRadiusEdgeRatio = x; },
-        [](const MeshingParameters& p) { return p.maxRadiusEdgeRatio; });
+        [](MeshingParameters& p, double x) { p.volume.maxRadiusEdgeRatio = x; },
+        [](const MeshingParameters& p) { return p.volume.maxRadiusEdgeRatio; });
     add({"min_dihedral_angle", "double", "degrees", "", 0, 18, "Quality bound (min dihedral)",
          "TetGen's minimum dihedral angle target in degrees (-q ratio/angle). Above about 18 TetGen "
          "may not terminate.", true},
-        [](MeshingParameters& p, double x) { p.minDihedralAngle = x; },
-        [](const MeshingParameters& p) { return p.minDihedralAngle; });
+        [](MeshingParameters& p, double x) { p.volume.minDihedralAngle = x; },
+        [](const MeshingParameters& p) { return p.volume.minDihedralAngle; });
     add({"max_tet_volume", "double", "mm^3", "", 0, 1e12, "Largest element volume",
-         "Upper bound on the volume of any tet in mm^3. 0 = automatic from the edge length.", true},
-        [](MeshingParameters& p, double x) { p.maxTetVolume = x; },
-        [](const MeshingParameters& p) { return p.maxTetVolume; });
+         "Upper bound on the volume of any tet in mm^3 (TetGen -a). 0 = no bound.", true},
+        [](MeshingParameters& p, double x) { p.volume.maxTetVolume = x; },
+        [](const MeshingParameters& p) { return p.volume.maxTetVolume; });
     add({"preserve_interfaces", "bool", "", "", 0, 1, "Keep interface triangles",
          "Keep the interface triangles exactly as sampled (TetGen -Y). When TetGen cannot, the run "
          "falls back to splitting them and says so.", true},
-        [](MeshingParameters& p, double x) { p.preserveInterfaces = x != 0; },
-        [](const MeshingParameters& p) { return p.preserveInterfaces ? 1.0 : 0.0; });
+        [](MeshingParameters& p, double x) { p.volume.preserveInterfaces = x != 0; },
+        [](const MeshingParameters& p) { return p.volume.preserveInterfaces ? 1.0 : 0.0; });
     add({"optimization_level", "int", "", "", 0, 10, "Optimisation effort",
          "TetGen mesh optimisation level (-O): flips and smoothing against slivers.", true},
-        [](MeshingParameters& p, double x) { p.optimizationLevel = int(x); },
-        [](const MeshingParameters& p) { return double(p.optimizationLevel); });
+        [](MeshingParameters& p, double x) { p.volume.optimizationLevel = int(x); },
+        [](const MeshingParameters& p) { return double(p.volume.optimizationLevel); });
     add({"volume_per_material", "bool", "", "", 0, 1, "Mesh materials in parallel",
          "With preserve_interfaces: TetGen meshes each material on its own, several at a time (one "
          "per thread); the pieces share the unsplit interface triangles. Off: one TetGen run for "
          "the whole surface.", true},
-        [](MeshingParameters& p, double x) { p.volumePerMaterial = x != 0; },
-        [](const MeshingParameters& p) { return p.volumePerMaterial ? 1.0 : 0.0; });
+        [](MeshingParameters& p, double x) { p.volume.perMaterial = x != 0; },
+        [](const MeshingParameters& p) { return p.volume.perMaterial ? 1.0 : 0.0; });
     add({"optimize_min_dihedral", "double", "degrees", "", 0, 40, "Sliver removal target",
          "After TetGen, tets whose smallest dihedral angle is below this are improved by edge and "
          "face flips inside one material, interior-vertex smoothing and peeling of flat boundary "
          "tets; interfaces between materials never change. 0 = off.", true},
-        [](MeshingParameters& p, double x) { p.optimizeMinDihedral = x; },
-        [](const MeshingParameters& p) { return p.optimizeMinDihedral; });
+        [](MeshingParameters& p, double x) { p.optimize.targetMinDihedral = x; },
+        [](const MeshingParameters& p) { return p.optimize.targetMinDihedral; });
     add({"sliver_peel_distance", "double", "voxels", "", 0, 1, "Boundary sliver peeling",
          "A flat tet with two or three faces on the mesh's outer boundary (background or volume "
          "box) is removed when it is thinner than this (voxels of the smallest spacing): the outer "
          "surface moves by at most that much. 0 = never.", true},
-        [](MeshingParameters& p, double x) { p.sliverPeelDistance = x; },
-        [](const MeshingParameters& p) { return p.sliverPeelDistance; });
+        [](MeshingParameters& p, double x) { p.optimize.peelDistance = x; },
+        [](const MeshingParameters& p) { return p.optimize.peelDistance; });
     add({"threads", "int", "", "", 0, 1024, "Threads", "Worker threads; 0 = all cores.", true},
-        [](MeshingParameters& p, double x) { p.threads = int(x); },
-        [](const MeshingParameters& p) { return double(p.threads); });
+        [](MeshingParameters& p, double x) { p.run.threads = int(x); },
+        [](const MeshingParameters& p) { return double(p.run.threads); });
     add({"seed", "int", "", "", 0, 4294967295.0, "Random seed",
          "Seed of the sampling order; the same seed and thread count give the same mesh.", true},
-        [](MeshingParameters& p, double x) { p.seed = uint64_t(x); },
-        [](const MeshingParameters& p) { return double(p.seed); });
+        [](MeshingParameters& p, double x) { p.run.seed = uint64_t(x); },
+        [](const MeshingParameters& p) { return double(p.run.seed); });
     add({"compute_fidelity", "bool", "", "", 0, 1, "Fidelity report",
          "Compare the mesh with the input labels (Dice, volume error, boundary distance).", true},
-        [](MeshingParameters& p, double x) { p.computeFidelity = x != 0; },
-        [](const MeshingParameters& p) { return p.computeFidelity ? 1.0 : 0.0; });
+        [](MeshingParameters& p, double x) { p.run.computeFidelity = x != 0; },
+        [](const MeshingParameters& p) { return p.run.computeFidelity ? 1.0 : 0.0; });
     add({"default.E", "double", "MPa", "", 1e-12, 1e9, "Young's modulus (default)",
          "Young's modulus written for every material in solver exports unless overridden with "
          "material.<label>.E.", true},
@@ -178,7 +178,7 @@ ParameterDescriptor sizingDescriptor() {
   ParameterDescriptor d;
   d.key = "sizing";
   d.type = "choice";
-  d.defaultValue = "adaptive";
+  d.defaultValue = sizingModeName(SizingParameters{}.mode);
   d.label = "Sizing";
   d.help = "'adaptive': element size follows the local feature size from the Integer Medial Axis "
            "(small in thin and curved parts, large where the shape is simple); 'uniform': one "
@@ -191,7 +191,7 @@ ParameterDescriptor surfaceMesherDescriptor() {
   ParameterDescriptor d;
   d.key = "surface_mesher";
   d.type = "choice";
-  d.defaultValue = "delaunay";
+  d.defaultValue = surfaceMesherName(BoundaryMeshParameters{}.mesher);
   d.label = "Surface mesher";
   d.help = "How the interface triangles are made from the particles: 'delaunay' (restricted "
            "Delaunay, watertight by construction) or 'ldt' (local Delaunay triangulation in each "
@@ -228,13 +228,28 @@ Status setMaterialParameter(MeshingParameters& params, const std::string& key,
   const auto dot = key.find('.', 9);
   if (dot == std::string::npos)
     return {ErrorCode::InvalidArgument,
-            "Parameter '" + key + "': use material.<label>.E, material.<label>.nu or "
-            "material.<label>.density"};
+            "Parameter '" + key + "': use material.<label>.E, material.<label>.nu, "
+            "material.<label>.density or material.<label>.exclude"};
   const std::string labelText = key.substr(9, dot - 9), field = key.substr(dot + 1);
   double label = 0, x = 0;
   if (!parseNumber(labelText, "int", label))
     return {ErrorCode::InvalidArgument, "Parameter '" + key + "': '" + labelText +
                                             "' is not an integer label id"};
+  if (field == "exclude") {
+    if (value == "no" || value == "false") {
+      params.preprocess.excluded.erase(int32_t(label));
+    } else if (value == "background") {
+      params.preprocess.excluded[int32_t(label)] = Exclusion::Background;
+    } else if (value == "merge") {
+      params.preprocess.excluded[int32_t(label)] = Exclusion::MergeIntoNeighbour;
+    } else {
+      return {ErrorCode::InvalidArgument,
+              "Parameter '" + key + "' = '" + value +
+                  "': use 'background' (the material's voxels become background), 'merge' (they "
+                  "join the neighbouring material) or 'no'"};
+    }
+    return Status::ok();
+  }
   if (!parseNumber(value, "double", x))
     return {ErrorCode::InvalidArgument, "Parameter '" + key + "': '" + value + "' is not a number"};
   auto it = params.materialProperties.find(int32_t(label));
@@ -252,13 +267,24 @@ Status setMaterialParameter(MeshingParameters& params, const std::string& key,
     props.density = x;
   } else {
     return {ErrorCode::InvalidArgument,
-            "Parameter '" + key + "': unknown material field '" + field + "' (E, nu, density)"};
+            "Parameter '" + key + "': unknown material field '" + field +
+                "' (E, nu, density, exclude)"};
   }
   params.materialProperties[int32_t(label)] = props;
   return Status::ok();
 }
 
 }  // namespace
+
+std::string sizingModeName(SizingMode m) { return m == SizingMode::Adaptive ? "adaptive" : "uniform"; }
+
+std::string surfaceMesherName(SurfaceMesher m) {
+  return m == SurfaceMesher::LocalDelaunay ? "ldt" : "delaunay";
+}
+
+std::string exclusionName(Exclusion e) {
+  return e == Exclusion::Background ? "background" : "merge";
+}
 
 const std::vector<ParameterDescriptor>& parameterDescriptors() {
   static const std::vector<ParameterDescriptor> d = [] {
@@ -277,14 +303,15 @@ Status setParameter(MeshingParameters& params, const std::string& key, const std
     if (value != "adaptive" && value != "uniform")
       return {ErrorCode::InvalidArgument,
               "Parameter 'sizing' = '" + value + "': use 'adaptive' or 'uniform'"};
-    params.sizing = value;
+    params.sizing.mode = value == "adaptive" ? SizingMode::Adaptive : SizingMode::Uniform;
     return Status::ok();
   }
   if (key == "surface_mesher") {
     if (value != "delaunay" && value != "ldt")
       return {ErrorCode::InvalidArgument,
               "Parameter 'surface_mesher' = '" + value + "': use 'delaunay' or 'ldt'"};
-    params.surfaceMesher = value;
+    params.boundary.mesher =
+        value == "ldt" ? SurfaceMesher::LocalDelaunay : SurfaceMesher::RestrictedDelaunay;
     return Status::ok();
   }
   const Binding* b = findBinding(key);
@@ -293,7 +320,7 @@ Status setParameter(MeshingParameters& params, const std::string& key, const std
     for (const auto& x : bindings()) known += (known.empty() ? "" : ", ") + x.desc.key;
     return {ErrorCode::InvalidArgument,
             "Unknown parameter '" + key + "'. Known parameters: " + known +
-                ", material.<label>.E|nu|density."};
+                ", material.<label>.E|nu|density|exclude."};
   }
   double x = 0;
   if (!parseNumber(value, b->desc.type, x))
@@ -308,8 +335,8 @@ Status setParameter(MeshingParameters& params, const std::string& key, const std
 }
 
 std::string getParameter(const MeshingParameters& params, const std::string& key) {
-  if (key == "surface_mesher") return params.surfaceMesher;
-  if (key == "sizing") return params.sizing;
+  if (key == "surface_mesher") return surfaceMesherName(params.boundary.mesher);
+  if (key == "sizing") return sizingModeName(params.sizing.mode);
   const Binding* b = findBinding(key);
   if (!b) return {};
   const double v = b->get(params);
@@ -323,13 +350,13 @@ Result<MeshingParameters> presetParameters(const std::string& name) {
   MeshingParameters p;
   if (name == "default") return p;
   if (name == "coarse") {
-    p.edgeLengthFactor = 4.5;
-    p.facetDistance = 0.75;
+    p.sizing.edgeLengthFactor = 4.5;
+    p.boundary.facetDistance = 0.75;
     return p;
   }
   if (name == "fine") {
-    p.edgeLengthFactor = 2.0;
-    p.facetDistance = 0.35;
+    p.sizing.edgeLengthFactor = 2.0;
+    p.boundary.facetDistance = 0.35;
     return p;
   }
   return Result<MeshingParameters>(ErrorCode::InvalidArgument,
@@ -344,12 +371,14 @@ std::string parametersToJson(const MeshingParameters& params) {
     else if (b.desc.type == "int") j[b.desc.key] = int64_t(v);
     else j[b.desc.key] = v;
   }
-  j["surface_mesher"] = params.surfaceMesher;
-  j["sizing"] = params.sizing;
+  j["surface_mesher"] = surfaceMesherName(params.boundary.mesher);
+  j["sizing"] = sizingModeName(params.sizing.mode);
   json mats = json::object();
   for (const auto& [label, m] : params.materialProperties)
     mats[std::to_string(label)] = {{"E", m.youngsModulus}, {"nu", m.poissonRatio},
                                    {"density", m.density}};
+  for (const auto& [label, how] : params.preprocess.excluded)
+    mats[std::to_string(label)]["exclude"] = exclusionName(how);
   j["materials"] = mats;
   return j.dump(2);
 }
@@ -374,6 +403,11 @@ Result<MeshingParameters> parametersFromJson(const std::string& text,
                                          "\"materials\" must be an object label -> {E, nu}");
       for (auto m = it->begin(); m != it->end(); ++m) {
         for (auto f = m->begin(); f != m->end(); ++f) {
+          if (f.key() == "exclude" && f->is_string()) {
+            Status s = setParameter(p, "material." + m.key() + ".exclude", f->get<std::string>());
+            if (!s) return s;
+            continue;
+          }
           if (!f->is_number())
             return Result<MeshingParameters>(ErrorCode::InvalidArgument,
                                              "materials." + m.key() + "." + f.key() +
@@ -413,18 +447,14 @@ Result<MeshingParameters> loadParametersFile(const std::string& path,
 }
 
 Status validate(const MeshingParameters& p) {
-  if (p.minVoxels < 1) return {ErrorCode::InvalidArgument, "min_voxels must be >= 1"};
-  if (p.sizing != "adaptive" && p.sizing != "uniform")
-    return {ErrorCode::InvalidArgument, "sizing must be 'adaptive' or 'uniform'"};
-  if (p.sizingHMax > 0 && p.sizingHMin > p.sizingHMax)
+  if (p.preprocess.minVoxels < 1) return {ErrorCode::InvalidArgument, "min_voxels must be >= 1"};
+  if (p.sizing.hMax > 0 && p.sizing.hMin > p.sizing.hMax)
     return {ErrorCode::InvalidArgument, "h_min must not exceed h_max"};
-  if (p.surfaceMesher != "delaunay" && p.surfaceMesher != "ldt")
-    return {ErrorCode::InvalidArgument, "surface_mesher must be 'delaunay' or 'ldt'"};
-  if (p.smoothingSigma < 0) return {ErrorCode::InvalidArgument, "smoothing_sigma must be >= 0"};
-  if (p.maxRadiusEdgeRatio != 0 && p.maxRadiusEdgeRatio < 1.05)
+  if (p.indicators.sigma < 0) return {ErrorCode::InvalidArgument, "smoothing_sigma must be >= 0"};
+  if (p.volume.maxRadiusEdgeRatio != 0 && p.volume.maxRadiusEdgeRatio < 1.05)
     return {ErrorCode::InvalidArgument,
             "max_radius_edge_ratio must be 0 (off) or >= 1.05; lower bounds do not terminate"};
-  if (p.minDihedralAngle < 0 || p.minDihedralAngle > 18)
+  if (p.volume.minDihedralAngle < 0 || p.volume.minDihedralAngle > 18)
     return {ErrorCode::InvalidArgument, "min_dihedral_angle must be in [0, 18] degrees"};
   return Status::ok();
 }

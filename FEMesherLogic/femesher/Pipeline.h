@@ -2,12 +2,11 @@
 #pragma once
 /// \file Pipeline.h
 /// The whole meshing run: label map in, labelled conformal tet mesh out, plus the run report.
-/// This is what the CLI, the panel and the Slicer adapter call.
-///
-/// Stages (DESIGN.md): LabelPreprocess, IndicatorFunctions, Isosurface, SurfaceSampling
-/// (later: MedialAxis, SizingField, Junctions, ParticleSystem), BoundaryMesh, VolumeMesh,
-/// Quality, Fidelity. Each stage reports progress and checks cancel through the RunContext.
+/// This is what the CLI, the panel and the Slicer adapter call. The stages and how they connect
+/// are in MeshingRun.h (the stage table in StageTable.h); this file runs them all and assembles
+/// the result.
 
+#include <femesher/MeshingRun.h>
 #include <femesher/Parameters.h>
 #include <femesher/RunContext.h>
 #include <femesher/Status.h>
@@ -15,15 +14,11 @@
 #include <femesher/stages/Fidelity.h>
 #include <femesher/stages/Quality.h>
 
+#include <memory>
 #include <string>
 #include <vector>
 
 namespace femesher {
-
-struct StageTiming {
-  std::string name;
-  double seconds = 0;
-};
 
 struct PipelineResult {
   TetMesh mesh;                     ///< LPS mm, tets labelled with user label ids
@@ -33,17 +28,23 @@ struct PipelineResult {
   std::vector<StageTiming> timings; ///< wall seconds per stage, in run order
   std::vector<std::string> warnings;
   /// Counts by name: "surface_samples", "surface_triangles", "vertices", "tets", ...
-  std::vector<std::pair<std::string, double>> counts;
-  std::vector<int32_t> droppedLabels;  ///< labels below min_voxels
+  ReportCounts counts;
+  std::vector<int32_t> droppedLabels;   ///< labels below min_voxels
+  std::vector<int32_t> excludedLabels;  ///< labels the user excluded
+  /// The adaptive sizing field the run used (null with uniform sizing) and its image geometry
+  /// (the working grid placed in the input's physical space): what `femesher sizing` writes.
+  std::shared_ptr<const SizingField> sizingField;
+  LabelVolume sizingGeometry;
   double totalSeconds = 0;
-  std::string reportJson;           ///< the full run report (see `runReportJson`)
+  std::string reportJson;           ///< the full run report (see RunReport.h)
 };
 
 /// Run the full pipeline. Canceled -> Status Canceled. Never writes files.
 Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParameters& params,
                                    RunContext& ctx);
 
-/// Names of the stages in run order with their progress weights.
-std::vector<std::pair<std::string, double>> pipelineStagePlan(const MeshingParameters& params);
+/// Runs `body`, turning femesher::Error, std::bad_alloc and other exceptions into a Status with a
+/// message a user can act on (the boundary every entry point into the stages uses).
+Status runGuarded(const std::function<void()>& body);
 
 }  // namespace femesher

@@ -13,12 +13,17 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace femesher {
 
 using Vec3 = std::array<double, 3>;
 using Mat3 = std::array<double, 9>;  ///< row-major 3x3: m[3*r + c]
+
+/// Named figures a stage result contributes to the run report ("tets", "surface_samples", ...),
+/// in report order.
+using ReportCounts = std::vector<std::pair<std::string, double>>;
 
 /// One material (label) of a label map or a mesh.
 struct Material {

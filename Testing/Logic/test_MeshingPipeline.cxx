@@ -219,7 +219,7 @@ TEST(MeshingPipeline, TinyLabelsArePresentOrReported) {
       for (int i = 8; i < 10; ++i) v.labels[v.index(i, j, k)] = 8;
   v.labels[v.index(15, 15, 2)] = 9;
   MeshingParameters p;
-  p.minVoxels = 1;
+  p.preprocess.minVoxels = 1;
   RunContext ctx;
   auto r = runPipeline(v, p, ctx);
   ASSERT_TRUE(r.isOk()) << r.status().message();
@@ -232,7 +232,7 @@ TEST(MeshingPipeline, TinyLabelsArePresentOrReported) {
 TEST(MeshingPipeline, SameSeedSameMesh) {
   const LabelVolume v = ballsInShell(28);
   MeshingParameters p;
-  p.threads = 2;
+  p.run.threads = 2;
   RunContext c1, c2;
   auto a = runPipeline(v, p, c1);
   auto b = runPipeline(v, p, c2);
@@ -329,7 +329,7 @@ size_t misplacedBoundaryCentres(const LabelVolume& v, const TetMesh& m) {
 TEST(MeshingPipeline, SurfaceRefinementPutsVoxelCentresInTheirLabel) {
   const LabelVolume v = thinFeatures();
   MeshingParameters off;
-  off.facetDistance = 0;  // no refinement: the particles' restricted Delaunay surface only
+  off.boundary.facetDistance = 0;  // no refinement: the particles' restricted Delaunay surface only
   MeshingParameters on;   // defaults: facet distance + voxel-centre refinement
   RunContext c1, c2;
   auto a = runPipeline(v, off, c1);
@@ -400,12 +400,12 @@ std::map<int32_t, double> labelVolumes(const TetMesh& m) {
 TEST(VolumeMesh, PerMaterialRunsMatchOneRunOfTheWholeSurface) {
   const LabelVolume v = ballsWithCavities();
   MeshingParameters p;
-  p.threads = 2;
-  p.computeFidelity = false;
-  p.optimizeMinDihedral = 0;  // TetGen's output itself (peeling would move the outer boundary)
+  p.run.threads = 2;
+  p.run.computeFidelity = false;
+  p.optimize.targetMinDihedral = 0;  // TetGen's output itself (peeling would move the outer boundary)
   RunContext c1, c2;
   auto split = runPipeline(v, p, c1);
-  p.volumePerMaterial = false;
+  p.volume.perMaterial = false;
   auto whole = runPipeline(v, p, c2);
   ASSERT_TRUE(split.isOk()) << split.status().message();
   ASSERT_TRUE(whole.isOk()) << whole.status().message();

@@ -143,8 +143,8 @@ TEST(Optimize, SmoothsAnInteriorVertexBackToTheMiddle) {
 TEST(Optimize, PhantomMeshKeepsItsMaterialInterfacesAndLosesSlivers) {
   const LabelVolume v = makePhantom();
   MeshingParameters p;
-  p.optimizeMinDihedral = 0;  // TetGen's mesh as it is
-  p.computeFidelity = false;
+  p.optimize.targetMinDihedral = 0;  // TetGen's mesh as it is
+  p.run.computeFidelity = false;
   RunContext ctx;
   auto raw = runPipeline(v, p, ctx);
   ASSERT_TRUE(raw.isOk()) << raw.status().message();

@@ -1,10 +1,12 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/Parameters.h>
+#include <femesher/StageTable.h>
 #include <femesher/RunContext.h>
 #include <femesher/Types.h>
 
 #include <gtest/gtest.h>
 
+#include <set>
 #include <thread>
 
 using namespace femesher;
@@ -18,9 +20,9 @@ TEST(Parameters, SetAndGetEveryDescriptor) {
     EXPECT_FALSE(d.help.empty()) << d.key;
   }
   ASSERT_TRUE(setParameter(p, "target_edge_length", "1.5").isOk());
-  EXPECT_DOUBLE_EQ(p.targetEdgeLength, 1.5);
+  EXPECT_DOUBLE_EQ(p.sizing.targetEdgeLength, 1.5);
   ASSERT_TRUE(setParameter(p, "preserve_interfaces", "off").isOk());
-  EXPECT_FALSE(p.preserveInterfaces);
+  EXPECT_FALSE(p.volume.preserveInterfaces);
 }
 
 TEST(Parameters, RejectsUnknownKeysAndBadValues) {
@@ -48,10 +50,50 @@ TEST(Parameters, JsonRoundTripKeepsEverything) {
   EXPECT_FALSE(parametersFromJson("{\"bogus\": 1}").isOk());
 }
 
+TEST(Parameters, UserDefaultsAreTheStageDefaults) {
+  // One source of truth: a default-constructed MeshingParameters holds each stage's own
+  // defaults, and the descriptors report them.
+  const MeshingParameters p;
+  EXPECT_EQ(getParameter(p, "min_voxels"), "10");
+  EXPECT_EQ(p.preprocess.minVoxels, LabelPreprocessParameters{}.minVoxels);
+  EXPECT_EQ(getParameter(p, "smoothing_sigma"), "0.3");
+  EXPECT_EQ(p.indicators.sigma, IndicatorParameters{}.sigma);
+  EXPECT_EQ(getParameter(p, "sizing_scale"), "1.25");
+  EXPECT_EQ(p.sizing.scale, SizingParameters{}.scale);
+  EXPECT_EQ(getParameter(p, "particle_iterations"), "15");
+  EXPECT_EQ(p.particles.maxIterations, ParticleSystemParameters{}.maxIterations);
+  EXPECT_EQ(getParameter(p, "facet_distance"), "0.5");
+  EXPECT_EQ(p.boundary.facetDistance, BoundaryMeshParameters{}.facetDistance);
+  EXPECT_EQ(getParameter(p, "max_radius_edge_ratio"), "2");
+  EXPECT_EQ(p.volume.maxRadiusEdgeRatio, VolumeMeshParameters{}.maxRadiusEdgeRatio);
+  EXPECT_EQ(getParameter(p, "sliver_peel_distance"), "0.1");
+  EXPECT_EQ(p.optimize.peelDistance, OptimizeParameters{}.peelDistance);
+  EXPECT_EQ(getParameter(p, "sizing"), "adaptive");
+  EXPECT_EQ(getParameter(p, "surface_mesher"), "delaunay");
+}
+
+TEST(Parameters, MaterialExclusionIsAParameterThatRoundTrips) {
+  MeshingParameters p;
+  ASSERT_TRUE(setParameter(p, "material.4.exclude", "merge").isOk());
+  ASSERT_TRUE(setParameter(p, "material.7.exclude", "background").isOk());
+  ASSERT_EQ(p.preprocess.excluded.size(), 2u);
+  EXPECT_EQ(p.preprocess.excluded.at(4), Exclusion::MergeIntoNeighbour);
+  EXPECT_EQ(p.preprocess.excluded.at(7), Exclusion::Background);
+  Status bad = setParameter(p, "material.4.exclude", "maybe");
+  EXPECT_EQ(bad.code(), ErrorCode::InvalidArgument);
+  EXPECT_NE(bad.message().find("merge"), std::string::npos);
+  auto q = parametersFromJson(parametersToJson(p));
+  ASSERT_TRUE(q.isOk()) << q.status().message();
+  EXPECT_EQ(q->preprocess.excluded, p.preprocess.excluded);
+  EXPECT_EQ(parametersToJson(q.value()), parametersToJson(p));
+  ASSERT_TRUE(setParameter(p, "material.4.exclude", "no").isOk());
+  EXPECT_EQ(p.preprocess.excluded.count(4), 0u);
+}
+
 TEST(Parameters, PresetsDifferInSize) {
   auto c = presetParameters("coarse"), f = presetParameters("fine");
   ASSERT_TRUE(c.isOk() && f.isOk());
-  EXPECT_GT(c->edgeLengthFactor, f->edgeLengthFactor);
+  EXPECT_GT(c->sizing.edgeLengthFactor, f->sizing.edgeLengthFactor);
   EXPECT_FALSE(presetParameters("ultra").isOk());
 }
 
@@ -108,4 +150,16 @@ TEST(Types, ExtractInterfacesOfTwoTets) {
   EXPECT_EQ(shared, 1);
   m.tetLabels = {1, 1};
   EXPECT_EQ(extractInterfaces(m).size(), 6u);
+}
+
+TEST(StageTable, PipelineKeysAreUniqueAndTitled) {
+  std::set<std::string> keys;
+  for (const auto& s : stageTable()) {
+    EXPECT_TRUE(keys.insert(s.key).second) << s.key;
+    EXPECT_GT(std::string(s.title).size(), 5u) << s.key;
+    EXPECT_GT(s.weight, 0) << s.key;
+    EXPECT_EQ(&stageInfo(s.id), &s);
+    EXPECT_EQ(findStage(s.key), &s);
+  }
+  EXPECT_EQ(findStage("NoSuchStage"), nullptr);
 }

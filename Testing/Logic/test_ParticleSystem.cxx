@@ -375,7 +375,7 @@ TEST(LocalDelaunay, SameResultForAnyThreadCount) {
 TEST(MeshingPipeline, LdtSurfaceMesherRuns) {
   const LabelVolume v = twoSpheres();
   MeshingParameters p;
-  p.surfaceMesher = "ldt";
+  p.boundary.mesher = SurfaceMesher::LocalDelaunay;
   RunContext ctx;
   auto r = runPipeline(v, p, ctx);
   ASSERT_TRUE(r.isOk()) << r.status().message();

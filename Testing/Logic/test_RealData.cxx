@@ -51,7 +51,7 @@ void checkVolume(const LabelVolume& v, const MeshingParameters& p, const std::st
   const auto present = meshLabels(m);
   for (const auto& [label, count] : voxels) {
     if (label == 0) continue;
-    if (int64_t(count) >= p.minVoxels)
+    if (int64_t(count) >= p.preprocess.minVoxels)
       EXPECT_TRUE(present.count(label)) << name << ": label " << label << " (" << count
                                         << " voxels) is missing from the mesh";
   }
@@ -93,7 +93,7 @@ TEST_P(RealData, MeshesWithAllLabelsConformalAndFaithful) {
   auto v = readLabelMap(path);
   ASSERT_TRUE(v.isOk()) << v.status().message();
   MeshingParameters p;
-  p.minVoxels = c.minVoxels;
+  p.preprocess.minVoxels = c.minVoxels;
   checkVolume(v.value(), p, c.file, c.minDice);
 }
 
@@ -125,7 +125,7 @@ namespace {
 
 void checkLdt(const LabelVolume& v, const std::string& name) {
   MeshingParameters p;
-  p.surfaceMesher = "ldt";
+  p.boundary.mesher = SurfaceMesher::LocalDelaunay;
   PipelineResult r;
   checkVolume(v, p, name, 0.90, &r);
   if (::testing::Test::HasFatalFailure()) return;
@@ -229,7 +229,7 @@ constexpr double kMinJunctionShare = 0.998;
 void checkJunctionEdges(const LabelVolume& v, const std::string& name) {
   RunContext ctx;
   MeshingParameters p;
-  p.computeFidelity = false;
+  p.run.computeFidelity = false;
   auto r = runPipeline(v, p, ctx);
   ASSERT_TRUE(r.isOk()) << name << ": " << r.status().message();
   std::map<std::string, double> c(r->counts.begin(), r->counts.end());

@@ -91,11 +91,13 @@ TEST(SizingField, ThinPlateSmallBigBallLarge) {
   const LabelVolume vol = plateAndBall();
   RunContext ctx;
   SizingParameters p;
+  p.scale = 0.5;
+  p.hMin = 0.5;
   p.hMax = 8.0;
   const auto result = computeSizingField(vol, p, ctx);
   ASSERT_TRUE(result.isOk()) << result.status().message();
   const SizingField& f = result.value();
-  EXPECT_DOUBLE_EQ(f.hMin, 0.5);  // auto: 1 x min spacing
+  EXPECT_DOUBLE_EQ(f.hMin, 0.5);
   EXPECT_DOUBLE_EQ(f.hMax, 8.0);
   ASSERT_EQ(f.h.size(), vol.voxelCount());
   for (float x : f.h) {
@@ -165,5 +167,25 @@ TEST(SizingField, OnlyBackgroundGivesHMax) {
   RunContext ctx;
   const auto r = computeSizingField(vol, SizingParameters{}, ctx);
   ASSERT_TRUE(r.isOk());
-  for (float x : r.value().h) EXPECT_FLOAT_EQ(x, 10.f);  // auto hMax = 10 x mean spacing
+  // auto hMax = 2.5 x the uniform edge length = 2.5 x edge_length_factor (3) x mean spacing (1)
+  for (float x : r.value().h) EXPECT_FLOAT_EQ(x, 7.5f);
+}
+
+TEST(SizingField, AutomaticBoundsFollowTheUniformEdgeLength) {
+  const LabelVolume vol = plateAndBall();
+  RunContext ctx;
+  SizingParameters p;
+  p.targetEdgeLength = 1.2;
+  double hMin = 0, hMax = 0;
+  resolveSizingBounds(p, vol, hMin, hMax);
+  EXPECT_DOUBLE_EQ(hMin, 0.6);
+  EXPECT_DOUBLE_EQ(hMax, 3.0);
+  p.targetEdgeLength = 0;  // automatic: 3 x mean spacing (0.5 mm), the labelled box is larger
+  EXPECT_DOUBLE_EQ(uniformEdgeLength(vol, p), 1.5);
+  p.hMin = 5;  // above the automatic hMax: lowered to it
+  resolveSizingBounds(p, vol, hMin, hMax);
+  EXPECT_DOUBLE_EQ(hMin, hMax);
+  const auto r = computeSizingField(vol, p, ctx);
+  ASSERT_TRUE(r.isOk());
+  EXPECT_DOUBLE_EQ(r->hMin, r->hMax);
 }

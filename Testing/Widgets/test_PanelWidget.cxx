@@ -313,11 +313,11 @@ class PanelWidgetTest : public QObject {
   void excludedMaterialIsNotMeshed() {
     panel_->setMaterialIncluded(5, false);
     QVERIFY(!panel_->isMaterialIncluded(5));
-    auto input = panel_->volumeToMesh();
-    QVERIFY(!findMaterial(input->materials, 5));
-    QVERIFY(std::find(input->labels.begin(), input->labels.end(), 5) == input->labels.end());
+    // The exclusion is a parameter: the loaded volume itself is untouched.
+    QCOMPARE(panel_->parameters().preprocess.excluded.size(), size_t(1));
+    QVERIFY(panel_->parameters().preprocess.excluded.at(5) == Exclusion::Background);
     QVERIFY(std::find(panel_->volume()->labels.begin(), panel_->volume()->labels.end(), 5) !=
-            panel_->volume()->labels.end());  // the loaded volume itself is untouched
+            panel_->volume()->labels.end());
     QVERIFY(panel_->run());
     QVERIFY(waitForEnd(300000));
     QCOMPARE(panel_->runState(), QStringLiteral("succeeded"));
@@ -325,11 +325,56 @@ class PanelWidgetTest : public QObject {
                              panel_->result()->mesh.tetLabels.end());
     QCOMPARE(labels, (std::set<int32_t>{1, 2, 3, 4}));
     panel_->setMaterialIncluded(5, true);
+    QVERIFY(panel_->parameters().preprocess.excluded.empty());
     // All unticked: refused with a message.
     for (int32_t id = 1; id <= 5; ++id) panel_->setMaterialIncluded(id, false);
     QVERIFY(!panel_->run());
     QVERIFY(panel_->lastError().contains(QStringLiteral("tick")));
     for (int32_t id = 1; id <= 5; ++id) panel_->setMaterialIncluded(id, true);
+  }
+
+  void savedExclusionsReproduceTheGuiMeshFromTheCli() {
+    // Label 5 merged into its neighbour, label 4 cut away; the GUI's mesh, then the CLI's with the
+    // panel's parameter file: the same bytes.
+    panel_->setMaterialIncluded(5, false);
+    panel_->setMaterialExclusion(5, Exclusion::MergeIntoNeighbour);
+    panel_->setMaterialIncluded(4, false);
+    panel_->setMaterialExclusion(4, Exclusion::Background);
+    const QString params = tmpFile(QStringLiteral("excluded.json"));
+    QVERIFY2(panel_->saveParametersFile(params), qPrintable(panel_->lastError()));
+    QVERIFY(panel_->run());
+    QVERIFY(waitForEnd(300000));
+    QCOMPARE(panel_->runState(), QStringLiteral("succeeded"));
+    std::set<int32_t> labels(panel_->result()->mesh.tetLabels.begin(),
+                             panel_->result()->mesh.tetLabels.end());
+    QCOMPARE(labels, (std::set<int32_t>{1, 2, 3}));
+    bool mergedNamed = false;
+    for (const auto& w : panel_->result()->warnings)
+      mergedNamed |= w.find("merged into its neighbours") != std::string::npos;
+    QVERIFY2(mergedNamed, "no warning says where label 5 went");
+    const QString gui = tmpFile(QStringLiteral("gui.mesh"));
+    QVERIFY2(panel_->exportMesh(gui), qPrintable(panel_->lastError()));
+    QProcess cli;
+    const QString out = tmpFile(QStringLiteral("cli.mesh"));
+    cli.start(QStringLiteral(FEMESHER_CLI), {QStringLiteral("mesh"), phantomPath_,
+                                             QStringLiteral("-o"), out,
+                                             QStringLiteral("--parameters"), params});
+    QVERIFY(cli.waitForFinished(300000));
+    QVERIFY2(cli.exitCode() == 0, cli.readAllStandardError().constData());
+    QFile a(gui), b(out);
+    QVERIFY(a.open(QIODevice::ReadOnly) && b.open(QIODevice::ReadOnly));
+    const QByteArray guiBytes = a.readAll(), cliBytes = b.readAll();
+    QVERIFY(guiBytes.size() > 1000);
+    QVERIFY2(guiBytes == cliBytes, "the CLI with the panel's parameter file made another mesh");
+    // Loading the file back restores the ticks and the choices.
+    panel_->setMaterialIncluded(4, true);
+    panel_->setMaterialIncluded(5, true);
+    QVERIFY2(panel_->loadParametersFile(params), qPrintable(panel_->lastError()));
+    QVERIFY(!panel_->isMaterialIncluded(4) && !panel_->isMaterialIncluded(5));
+    QVERIFY(panel_->materialExclusion(5) == Exclusion::MergeIntoNeighbour);
+    QVERIFY(panel_->materialExclusion(4) == Exclusion::Background);
+    panel_->setMaterialIncluded(4, true);
+    panel_->setMaterialIncluded(5, true);
   }
 
   void cleanupTestCase() {

@@ -57,6 +57,17 @@ class LabelledDelaunay {
   std::unique_ptr<Impl> impl;
 };
 
+enum class SurfaceMesher { RestrictedDelaunay, LocalDelaunay };
+struct BoundaryMeshParameters {
+  /// Surface approximation bound in voxels of the smallest spacing (CGAL's facet_distance);
+  /// 0 = no refinement (which also turns off the voxel-centre pass).
+  double facetDistance = 0.5;
+  /// After the facet-distance refinement, insert interface points until every voxel centre
+  /// next to another label lies in a tet of its own label.
+  bool voxelRefinement = true;
+  SurfaceMesher mesher = SurfaceMesher::RestrictedDelaunay;
+};
+
 struct BoundarySurface {
   std::vector<Vec3> points;  ///< canonical mm; only vertices used by interface triangles
   std::vector<std::array<int32_t, 3>> triangles;

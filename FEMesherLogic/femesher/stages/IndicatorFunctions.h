@@ -29,7 +29,7 @@ namespace femesher {
 class RunContext;
 
 struct IndicatorParameters {
-  double sigma = 0.8;  ///< Gaussian smoothing in voxels (0 = none); a label whose bounding box is
+  double sigma = 0.3;  ///< Gaussian smoothing in voxels (0 = none); a label whose bounding box is
                        ///< thinner than 4 sigma gets sigma = a quarter of that thickness
   int band = 4;        ///< narrow band half-width in voxels; values beyond are clamped
 };

@@ -248,4 +248,11 @@ Junctions findJunctions(const IndicatorField& field, const SizingFunction& sizin
   return out;
 }
 
+ReportCounts reportCounts(const Junctions& j) {
+  return {{"junction_cells", double(j.tripleCells)},
+          {"quadruple_cells", double(j.quadrupleCells)},
+          {"junction_particles", double(j.particles.size())},
+          {"quadruple_points", double(j.quadruplePoints)}};
+}
+
 }  // namespace femesher

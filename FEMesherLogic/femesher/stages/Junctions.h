@@ -64,6 +64,9 @@ struct Junctions {
 /// converged with these labels the n leading materials there.
 bool locateJunctionPoint(const IndicatorField& field, const uint16_t* labels, int n, Vec3& local);
 
+/// Report figures: junction_cells, quadruple_cells, junction_particles, quadruple_points.
+ReportCounts reportCounts(const Junctions& junctions);
+
 Junctions findJunctions(const IndicatorField& field, const SizingFunction& sizing,
                         const JunctionParameters& params, RunContext& ctx);
 

@@ -5,13 +5,137 @@
 
 #include <algorithm>
 #include <map>
+#include <set>
 #include <sstream>
 #include <unordered_map>
 
 namespace femesher {
 
-PreprocessedVolume preprocessLabels(const LabelVolume& in, const LabelPreprocessParameters& params,
-                                    RunContext& ctx) {
+namespace {
+
+std::string labelName(const LabelVolume& in, int32_t label) {
+  std::ostringstream os;
+  os << "Label " << label;
+  const Material* m = findMaterial(in.materials, label);
+  if (m && !m->name.empty()) os << " (" << m->name << ")";
+  return os.str();
+}
+
+/// Names the exclusions that empty the label or that name a label the map does not have.
+void warnAboutExclusions(const LabelVolume& input, const LabelPreprocessParameters& params,
+                         const std::set<int32_t>& present, RunContext& ctx) {
+  for (const auto& [label, how] : params.excluded) {
+    if (!present.count(label)) {
+      ctx.warn("Label " + std::to_string(label) +
+               " is excluded, but the label map has no such label: nothing to exclude.");
+    } else if (how == Exclusion::Background) {
+      ctx.warn(labelName(input, label) +
+               " is excluded: its voxels are background (the mesh has a cavity or a cut there).");
+    }
+  }
+}
+
+/// Fills the voxels marked `dropped` from their kept 6-neighbours (the most common; ties prefer a
+/// material over background, then the smaller id), layer by layer. Returns, per user label of
+/// the dropped voxels, how many voxels each compact label received.
+std::map<int32_t, std::map<uint16_t, size_t>> fillFromNeighbours(PreprocessedVolume& out,
+                                                                 uint16_t dropped,
+                                                                 std::vector<size_t> voxels,
+                                                                 std::vector<int32_t> from) {
+  std::map<int32_t, std::map<uint16_t, size_t>> received;
+  const long sx = 1, sy = out.dims[0], sz = long(out.dims[0]) * out.dims[1];
+  while (!voxels.empty()) {
+    std::vector<std::pair<size_t, uint16_t>> assign;
+    std::vector<int32_t> assignFrom, stillFrom;
+    std::vector<size_t> still;
+    for (size_t v = 0; v < voxels.size(); ++v) {
+      const size_t idx = voxels[v];
+      uint16_t cand[6];
+      int nc = 0;
+      for (long d : {sx, -sx, sy, -sy, sz, -sz}) {
+        const uint16_t l = out.labels[size_t(long(idx) + d)];  // margin keeps us inside
+        if (l != dropped) cand[nc++] = l;
+      }
+      if (nc == 0) {
+        still.push_back(idx);
+        stillFrom.push_back(from[v]);
+        continue;
+      }
+      uint16_t best = cand[0];
+      int bestCount = 0;
+      for (int a = 0; a < nc; ++a) {
+        int c = 0;
+        for (int b = 0; b < nc; ++b) c += cand[a] == cand[b];
+        if (c > bestCount || (c == bestCount && ((best == 0 && cand[a] != 0) ||
+                                                 (cand[a] != 0 && cand[a] < best)))) {
+          best = cand[a];
+          bestCount = c;
+        }
+      }
+      assign.emplace_back(idx, best);
+      assignFrom.push_back(from[v]);
+    }
+    if (assign.empty()) {  // an isolated region of dropped labels with no kept neighbour
+      for (size_t v = 0; v < still.size(); ++v) {
+        out.labels[still[v]] = 0;
+        ++received[stillFrom[v]][0];
+      }
+      break;
+    }
+    for (size_t v = 0; v < assign.size(); ++v) {
+      out.labels[assign[v].first] = assign[v].second;
+      ++received[assignFrom[v]][assign[v].second];
+    }
+    voxels.swap(still);
+    from.swap(stillFrom);
+  }
+  return received;
+}
+
+/// Says where the voxels of a material excluded with MergeIntoNeighbour went.
+void warnMerged(const LabelVolume& input, const PreprocessedVolume& out, int32_t label,
+                const std::map<int32_t, std::map<uint16_t, size_t>>& received, RunContext& ctx) {
+  std::ostringstream os;
+  os << labelName(input, label) << " is excluded and merged into its neighbours:";
+  auto it = received.find(label);
+  if (it == received.end()) return;
+  std::vector<std::pair<size_t, uint16_t>> byCount;
+  for (const auto& [m, count] : it->second) byCount.emplace_back(count, m);
+  std::sort(byCount.begin(), byCount.end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first > b.first : a.second < b.second;
+  });
+  const char* sep = " ";
+  for (const auto& [count, m] : byCount) {
+    os << sep << (m == 0 ? std::string("background") : out.materials[m].name + " (label " +
+                                                            std::to_string(out.userLabel[m]) + ")")
+       << " " << count << " voxels";
+    sep = ", ";
+  }
+  os << ".";
+  ctx.warn(os.str());
+}
+
+}  // namespace
+
+PreprocessedVolume preprocessLabels(const LabelVolume& input,
+                                    const LabelPreprocessParameters& params, RunContext& ctx) {
+  // Materials excluded as background are background from here on (a copy only when there are).
+  LabelVolume masked;
+  const bool maskAny = std::any_of(params.excluded.begin(), params.excluded.end(), [](const auto& e) {
+    return e.second == Exclusion::Background;
+  });
+  std::set<int32_t> present;  // user labels of the input (before masking)
+  if (maskAny) {
+    masked = input;
+    for (int32_t& l : masked.labels) {
+      auto it = params.excluded.find(l);
+      if (it != params.excluded.end() && it->second == Exclusion::Background) {
+        present.insert(l);
+        l = 0;
+      }
+    }
+  }
+  const LabelVolume& in = maskAny ? masked : input;
   const size_t n = in.voxelCount();
   if (n == 0 || in.labels.size() != n)
     throw Error(ErrorCode::InvalidArgument, "The label map has no voxels.");
@@ -35,17 +159,24 @@ PreprocessedVolume preprocessLabels(const LabelVolume& in, const LabelPreprocess
   }
   ctx.progress(0.2);
 
-  // Decide which labels are kept.
-  std::vector<int32_t> kept, dropped;
+  // Decide which labels are kept; merged exclusions are filled like dropped labels.
+  std::vector<int32_t> kept, dropped, merged;
   for (const auto& [label, count] : counts) {
     if (label == 0) continue;
-    if (int64_t(count) < params.minVoxels) dropped.push_back(label);
+    if (params.excluded.count(label)) merged.push_back(label);
+    else if (int64_t(count) < params.minVoxels) dropped.push_back(label);
     else kept.push_back(label);
   }
+  for (const auto& c : counts) present.insert(c.first);
+  warnAboutExclusions(input, params, present, ctx);
   if (kept.empty()) {
     std::ostringstream os;
     os << (in.sourcePath.empty() ? std::string("The label map") : "'" + in.sourcePath + "'");
-    if (counts.size() == 1 && counts.count(0))
+    const bool anyExcluded = std::any_of(params.excluded.begin(), params.excluded.end(),
+                                         [&](const auto& e) { return present.count(e.first) > 0; });
+    if (anyExcluded && dropped.empty())
+      os << " has no material left to mesh: every label is excluded. Include at least one.";
+    else if (counts.size() == 1 && counts.count(0) && params.excluded.empty())
       os << " holds only background (0): there is nothing to mesh. Check that you picked the "
             "segmentation and not the image.";
     else
@@ -55,10 +186,7 @@ PreprocessedVolume preprocessLabels(const LabelVolume& in, const LabelPreprocess
   }
   for (int32_t d : dropped) {
     std::ostringstream os;
-    const Material* m = findMaterial(in.materials, d);
-    os << "Label " << d;
-    if (m && !m->name.empty()) os << " (" << m->name << ")";
-    os << " has only " << counts[d] << " voxels (< min_voxels = " << params.minVoxels
+    os << labelName(in, d) << " has only " << counts[d] << " voxels (< min_voxels = " << params.minVoxels
        << "): dropped, its voxels join the neighbouring label.";
     ctx.warn(os.str());
   }
@@ -66,6 +194,8 @@ PreprocessedVolume preprocessLabels(const LabelVolume& in, const LabelPreprocess
   PreprocessedVolume out;
   out.spacing = in.spacing;
   out.droppedLabels = dropped;
+  for (const auto& e : params.excluded)
+    if (present.count(e.first)) out.excludedLabels.push_back(e.first);
   out.userLabel.push_back(0);
   Material bg;
   bg.id = 0;
@@ -86,6 +216,7 @@ PreprocessedVolume preprocessLabels(const LabelVolume& in, const LabelPreprocess
   }
   constexpr uint16_t kDropped = 0xFFFF;
   for (int32_t d : dropped) compact[d] = kDropped;
+  for (int32_t d : merged) compact[d] = kDropped;
 
   // Bounding box of the labelled voxels (all voxels when there is no background).
   std::array<int, 3> lo{{in.dims[0], in.dims[1], in.dims[2]}}, hi{{-1, -1, -1}};
@@ -115,6 +246,7 @@ PreprocessedVolume preprocessLabels(const LabelVolume& in, const LabelPreprocess
   }
   out.labels.assign(size_t(out.dims[0]) * out.dims[1] * out.dims[2], 0);
   std::vector<size_t> droppedVoxels;
+  std::vector<int32_t> droppedFrom;  // user label of each dropped voxel (to name where it went)
   for (int k = margin; k < out.dims[2] - margin; ++k)
     for (int j = margin; j < out.dims[1] - margin; ++j)
       for (int i = margin; i < out.dims[0] - margin; ++i) {
@@ -122,47 +254,15 @@ PreprocessedVolume preprocessLabels(const LabelVolume& in, const LabelPreprocess
         const uint16_t c = u == 0 ? 0 : compact.at(u);
         const size_t idx = out.index(i, j, k);
         out.labels[idx] = c;
-        if (c == kDropped) droppedVoxels.push_back(idx);
+        if (c == kDropped) {
+          droppedVoxels.push_back(idx);
+          droppedFrom.push_back(u);
+        }
       }
   ctx.progress(0.6);
 
-  // Fill dropped voxels from their kept 6-neighbours (most common), layer by layer.
-  const long sx = 1, sy = out.dims[0], sz = long(out.dims[0]) * out.dims[1];
-  while (!droppedVoxels.empty()) {
-    std::vector<std::pair<size_t, uint16_t>> assign;
-    std::vector<size_t> still;
-    for (size_t idx : droppedVoxels) {
-      uint16_t cand[6];
-      int nc = 0;
-      for (long d : {sx, -sx, sy, -sy, sz, -sz}) {
-        const uint16_t l = out.labels[size_t(long(idx) + d)];  // margin keeps us inside
-        if (l != kDropped) cand[nc++] = l;
-      }
-      if (nc == 0) {
-        still.push_back(idx);
-        continue;
-      }
-      // Most common; ties -> prefer a material over background, then the smaller id.
-      uint16_t best = cand[0];
-      int bestCount = 0;
-      for (int a = 0; a < nc; ++a) {
-        int c = 0;
-        for (int b = 0; b < nc; ++b) c += cand[a] == cand[b];
-        if (c > bestCount || (c == bestCount && ((best == 0 && cand[a] != 0) ||
-                                                 (cand[a] != 0 && cand[a] < best)))) {
-          best = cand[a];
-          bestCount = c;
-        }
-      }
-      assign.emplace_back(idx, best);
-    }
-    if (assign.empty()) {  // isolated region of dropped labels with no kept neighbour: cannot be
-      for (size_t idx : still) out.labels[idx] = 0;
-      break;
-    }
-    for (const auto& [idx, l] : assign) out.labels[idx] = l;
-    droppedVoxels.swap(still);
-  }
+  const auto received = fillFromNeighbours(out, kDropped, droppedVoxels, droppedFrom);
+  for (int32_t m : merged) warnMerged(input, out, m, received, ctx);
 
   out.voxelCounts.assign(out.userLabel.size(), 0);
   for (uint16_t l : out.labels) ++out.voxelCounts[l];

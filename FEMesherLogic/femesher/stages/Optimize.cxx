@@ -471,7 +471,7 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
       if (!m.alive[t] || m.quality(t) >= params.targetMinDihedral) continue;
       fresh.clear();
       bool changed = false;
-      if (peel(m, t, params.peelDistance)) {
+      if (peel(m, t, params.peelDistance * params.voxelSize)) {
         ++r.peeledTets;
         changed = true;
       }
@@ -494,7 +494,7 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
         Vec3 normal;
         for (int32_t v : T)
           if ((!m.fixedVertex(v) && smoothVertex(m, v)) ||
-              (m.fixedVertex(v) && flatPatch(m, v, 1e-4 * params.peelDistance, normal) &&
+              (m.fixedVertex(v) && flatPatch(m, v, 1e-4 * (params.peelDistance * params.voxelSize), normal) &&
                smoothVertex(m, v, &normal))) {
             ++r.smoothedVertices;
             changed = true;
@@ -535,6 +535,20 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
   survey(r.tetsBelowTargetAfter, r.tetsBelow5After, r.minDihedralAfter);
   ctx.progress(1.0);
   return r;
+}
+
+ReportCounts reportCounts(const OptimizeResult& r) {
+  return {{"optimize_tets_below_target_before", double(r.tetsBelowTargetBefore)},
+          {"optimize_tets_below_target_after", double(r.tetsBelowTargetAfter)},
+          {"optimize_tets_below_5deg_before", double(r.tetsBelow5Before)},
+          {"optimize_tets_below_5deg_after", double(r.tetsBelow5After)},
+          {"optimize_min_dihedral_before", r.minDihedralBefore},
+          {"optimize_min_dihedral_after", r.minDihedralAfter},
+          {"optimize_edge_removals", double(r.edgeRemovals)},
+          {"optimize_face_flips", double(r.faceFlips)},
+          {"optimize_smoothed_vertices", double(r.smoothedVertices)},
+          {"optimize_peeled_tets", double(r.peeledTets)},
+          {"optimize_passes", double(r.passes)}};
 }
 
 }  // namespace femesher

@@ -43,8 +43,13 @@ struct OptimizeParameters {
   double targetMinDihedral = 15.0;
   /// Rounds over the tets still below the target (each round stops early once nothing improves).
   int passes = 4;
-  /// mm; flat tets on the outer boundary thinner than this are removed (0 = never).
-  double peelDistance = 0.0;
+  /// Flat tets with two to four faces on the outer boundary (background or volume box) thinner
+  /// than this, in voxels of the smallest spacing, are removed (the outer boundary moves by at
+  /// most that much; 0 = never); flat outer-boundary patches may slide by as much.
+  double peelDistance = 0.1;
+  /// The length of that voxel in the mesh's frame (mm): peelDistance × voxelSize is the distance.
+  /// A run sets it from its grid's smallest spacing; 1 when the mesh is in voxel units.
+  double voxelSize = 1.0;
   /// Move interior vertices.
   bool smooth = true;
 };
@@ -59,6 +64,11 @@ struct OptimizeResult {
   size_t peeledTets = 0;        ///< flat boundary tets removed
   int passes = 0;               ///< rounds run
 };
+
+/// Report figures: optimize_tets_below_target_before/after, optimize_tets_below_5deg_before/after,
+/// optimize_min_dihedral_before/after, optimize_edge_removals, optimize_face_flips,
+/// optimize_smoothed_vertices, optimize_peeled_tets, optimize_passes.
+ReportCounts reportCounts(const OptimizeResult& result);
 
 /// Minimum dihedral angle of a tet in degrees; -1 when it is not positively oriented (or flat).
 double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);

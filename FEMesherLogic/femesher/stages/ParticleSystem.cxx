@@ -522,4 +522,11 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
   return res;
 }
 
+ReportCounts reportCounts(const ParticleSystemResult& r) {
+  return {{"particle_iterations", double(r.iterations)},
+          {"particle_converged", r.converged ? 1.0 : 0.0},
+          {"particle_energy", r.finalEnergy},
+          {"particle_spacing_ratio", r.meanSpacingRatio}};
+}
+
 }  // namespace femesher

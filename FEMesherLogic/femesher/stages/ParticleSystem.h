@@ -40,7 +40,7 @@ namespace femesher {
 class RunContext;
 
 struct ParticleSystemParameters {
-  int maxIterations = 30;
+  int maxIterations = 15;  ///< 0 = no system: the Poisson-disk samples are used as they are
   int populationInterval = 5;
   double kernelScale = 1.5;       ///< interaction radius / target spacing
   double maxStepFactor = 0.3;     ///< largest move per iteration / h
@@ -66,6 +66,10 @@ struct ParticleSystemResult {
   double finalMaxMove = 0, finalMoveP95 = 0;  ///< last iteration's moves / h
   size_t added = 0, removed = 0, lost = 0;
 };
+
+/// Report figures: particle_iterations, particle_converged, particle_energy,
+/// particle_spacing_ratio.
+ReportCounts reportCounts(const ParticleSystemResult& result);
 
 /// The fixed junction particles, in the order of `junctions.particles`.
 std::vector<Particle> junctionParticles(const Junctions& junctions);

@@ -70,25 +70,53 @@ float SizingField::at(const Vec3& c) const {
   return float(v);
 }
 
-void resolveSizingBounds(const SizingParameters& p, const Grid3& grid, double& hMin,
+double uniformEdgeLength(const LabelVolume& in, const SizingParameters& p) {
+  if (p.targetEdgeLength > 0) return p.targetEdgeLength;
+  const double mean = (in.spacing[0] + in.spacing[1] + in.spacing[2]) / 3.0;
+  double h = p.edgeLengthFactor * mean;
+  std::array<int, 3> lo{{in.dims[0], in.dims[1], in.dims[2]}}, hi{{-1, -1, -1}};
+  const bool all = in.hasNoBackground();
+  for (int k = 0; k < in.dims[2]; ++k)
+    for (int j = 0; j < in.dims[1]; ++j)
+      for (int i = 0; i < in.dims[0]; ++i)
+        if (all || in.at(i, j, k) != 0) {
+          lo = {std::min(lo[0], i), std::min(lo[1], j), std::min(lo[2], k)};
+          hi = {std::max(hi[0], i), std::max(hi[1], j), std::max(hi[2], k)};
+        }
+  for (int a = 0; a < 3; ++a)
+    if (hi[a] >= lo[a]) h = std::min(h, 0.25 * (hi[a] - lo[a] + 1) * in.spacing[a]);
+  return h;
+}
+
+MedialAxisParameters medialAxisParameters(const SizingParameters& params) {
+  MedialAxisParameters mp;
+  mp.pruning = params.pruning;
+  mp.gamma = params.gamma;
+  mp.gammaConstant = params.gammaConstant;
+  mp.threads = params.threads;
+  return mp;
+}
+
+void resolveSizingBounds(const SizingParameters& p, const LabelVolume& volume, double& hMin,
                          double& hMax) {
   auto bad = [](const std::string& what) {
     throw Error(ErrorCode::InvalidArgument, "Sizing field: " + what);
   };
   if (!(p.scale > 0) || !std::isfinite(p.scale))
-    bad("scale must be > 0 (got " + std::to_string(p.scale) + "); try 0.5.");
+    bad("scale must be > 0 (got " + std::to_string(p.scale) + "); try 1.25.");
   if (!(p.gradation > 0) || !std::isfinite(p.gradation))
     bad("gradation must be > 0 (got " + std::to_string(p.gradation) + "); try 0.4.");
   if (!(p.hMin >= 0) || !std::isfinite(p.hMin))
     bad("hMin must be >= 0 mm (0 = automatic); got " + std::to_string(p.hMin) + ".");
   if (!(p.hMax >= 0) || !std::isfinite(p.hMax))
     bad("hMax must be >= 0 mm (0 = automatic); got " + std::to_string(p.hMax) + ".");
-  const auto& s = grid.spacing;
-  hMin = p.hMin > 0 ? p.hMin : std::min({s[0], s[1], s[2]});
-  hMax = p.hMax > 0 ? p.hMax : 10.0 * (s[0] + s[1] + s[2]) / 3.0;
-  if (hMax < hMin)
+  const double h = p.hMin > 0 && p.hMax > 0 ? 0 : uniformEdgeLength(volume, p);
+  hMin = p.hMin > 0 ? p.hMin : 0.5 * h;
+  hMax = p.hMax > 0 ? p.hMax : 2.5 * h;
+  if (hMin > hMax && p.hMin > 0 && p.hMax > 0)
     bad("hMax (" + std::to_string(hMax) + " mm) is below hMin (" + std::to_string(hMin) +
         " mm); raise hMax or lower hMin.");
+  if (hMin > hMax) hMin = hMax;
 }
 
 std::vector<float> localFeatureSize(const Grid3& grid, const std::vector<uint8_t>& medialMask,
@@ -153,13 +181,9 @@ int limitGradation(const Grid3& grid, std::vector<float>& h, double L, RunContex
 Result<SizingField> computeSizingField(const LabelVolume& volume, const SizingParameters& params,
                                        RunContext& ctx) {
   try {
-    MedialAxisParameters mp;
-    mp.pruning = params.pruning;
-    mp.gamma = params.gamma;
-    mp.gammaConstant = params.gammaConstant;
-    mp.threads = params.threads;
+    const MedialAxisParameters mp = medialAxisParameters(params);
     double hMin = 0, hMax = 0;
-    resolveSizingBounds(params, gridOf(volume), hMin, hMax);  // fail early
+    resolveSizingBounds(params, volume, hMin, hMax);  // fail early
     if (volume.voxelCount() == 0)
       return Status(ErrorCode::InvalidArgument, "Sizing field: the label map has no voxels.");
     const LabelMedialAxes axes = computeAllMedialAxes(volume, mp, &ctx, 0.0, 0.6);
@@ -175,7 +199,7 @@ Result<SizingField> computeSizingField(const LabelVolume& volume, const LabelMed
     SizingField field;
     field.grid = gridOf(volume);
     const Grid3& grid = field.grid;
-    resolveSizingBounds(params, grid, field.hMin, field.hMax);
+    resolveSizingBounds(params, volume, field.hMin, field.hMax);
     const size_t n = grid.size();
     if (n == 0) return Status(ErrorCode::InvalidArgument, "Sizing field: the label map has no voxels.");
     if (volume.labels.size() != n || axes.unionMask.size() != n)

@@ -33,18 +33,39 @@ namespace femesher {
 
 class RunContext;
 
-/// User parameters (mm). Derived values (resolved hMin/hMax) live in `SizingField`.
+enum class SizingMode {
+  Adaptive,  ///< h from the Integer Medial Axis local feature size (this stage)
+  Uniform,   ///< one edge length everywhere (`uniformEdgeLength`); this stage does not run
+};
+
+/// The element size of a run: the uniform edge length every other size derives from, and the
+/// adaptive field's knobs. Lengths in mm.
 struct SizingParameters {
-  double scale = 0.5;      ///< ε: h = ε × lfs ("detail" knob, about 0.3–1)
-  double hMin = 0;         ///< mm; 0 = auto: 1 × the smallest spacing
-  double hMax = 0;         ///< mm; 0 = auto: 10 × the mean spacing
+  SizingMode mode = SizingMode::Adaptive;
+  /// The uniform edge length in mm; 0 = automatic: edgeLengthFactor × the mean voxel spacing, at
+  /// most a quarter of the labelled box's smallest side (tiny volumes still get a few elements).
+  double targetEdgeLength = 0;
+  double edgeLengthFactor = 3.0;  ///< voxels (presets: coarse 4.5, default 3, fine 2)
+  double scale = 1.25;     ///< ε: h = ε × lfs ("detail" knob; smaller = more detail)
+  double hMin = 0;         ///< mm; 0 = auto: half the uniform edge length
+  double hMax = 0;         ///< mm; 0 = auto: 2.5 × the uniform edge length
   double gradation = 0.4;  ///< L > 0: h grows at most L mm per mm (about 0.2–0.5)
+  /// Hand the field to TetGen as point metrics so the interior follows it too (more tets); off:
+  /// the interior is graded from the surface by TetGen's quality bound.
+  bool volumeSizing = false;
   MedialAxisPruning pruning = MedialAxisPruning::ConstantLinear;  ///< see MedialAxis.h
   double gamma = 1.4;          ///< γ of `pruning` (MedialAxis.h defines its scaling)
   double gammaConstant = 3.0;  ///< constant floor of ConstantLinear, voxel units
   bool interfacesOnly = true;  ///< h0 from lfs at interface voxels only (see the file comment)
-  int threads = 0;             ///< 0 = all hardware threads
+  int threads = 0;             ///< 0 = all hardware threads (a run sets its own)
 };
+
+/// The uniform edge length (mm) of `params` on a label map (label 0 = not labelled; a map with no
+/// 0 is labelled everywhere): see SizingParameters::targetEdgeLength.
+double uniformEdgeLength(const LabelVolume& volume, const SizingParameters& params);
+
+/// The medial-axis parameters the sizing field uses (pruning, gamma, threads of `params`).
+MedialAxisParameters medialAxisParameters(const SizingParameters& params);
 
 /// Target edge length on a grid (canonical frame).
 struct SizingField {
@@ -59,8 +80,9 @@ struct SizingField {
   float at(const Vec3& canonicalPosition) const;
 };
 
-/// Resolved bounds (auto values applied) for a grid; throws Error(InvalidArgument) when invalid.
-void resolveSizingBounds(const SizingParameters& params, const Grid3& grid, double& hMin,
+/// Resolved bounds (auto values applied, an automatic hMin lowered to hMax when above it) for a
+/// label map; throws Error(InvalidArgument) when invalid.
+void resolveSizingBounds(const SizingParameters& params, const LabelVolume& volume, double& hMin,
                          double& hMax);
 
 /// Distance (mm) from every voxel to the nearest voxel with medialMask != 0 (+inf if none).

@@ -203,4 +203,10 @@ SurfaceSamples sampleInterfaces(const IndicatorField& field, const LabelVolume& 
   return out;
 }
 
+ReportCounts reportCounts(const SurfaceSamples& s) {
+  return {{"isosurface_triangles", double(s.isosurfaceTriangles)},
+          {"interface_candidates", double(s.all.size())},
+          {"surface_samples", double(s.selected.size())}};
+}
+
 }  // namespace femesher

@@ -46,6 +46,9 @@ struct SurfaceSamples {
   size_t isosurfaceTriangles = 0;
 };
 
+/// Report figures: isosurface_triangles, interface_candidates, surface_samples.
+ReportCounts reportCounts(const SurfaceSamples& samples);
+
 /// `input` is only used to send previews in LPS.
 SurfaceSamples sampleInterfaces(const IndicatorField& field, const LabelVolume& input,
                                 const SurfaceSamplingParameters& params, RunContext& ctx);

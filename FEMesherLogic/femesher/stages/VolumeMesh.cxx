@@ -552,4 +552,10 @@ VolumeMeshResult buildVolumeMesh(const BoundarySurface& s, const VolumeMeshParam
   return result;
 }
 
+ReportCounts reportCounts(const VolumeMeshResult& r) {
+  return {{"tetgen_regions", double(r.regions)},
+          {"tetgen_runs", double(r.tetgenRuns)},
+          {"tetgen_hole_points", double(r.holePoints)}};
+}
+
 }  // namespace femesher

@@ -26,7 +26,7 @@ namespace femesher {
 class RunContext;
 
 struct VolumeMeshParameters {
-  double maxRadiusEdgeRatio = 1.5;  ///< 0 = no quality refinement
+  double maxRadiusEdgeRatio = 2.0;  ///< 0 = no quality refinement; below about 1.2 TetGen may not terminate
   double minDihedralAngle = 12.0;   ///< degrees
   double maxTetVolume = 0;          ///< mm^3, 0 = none
   bool preserveInterfaces = true;   ///< -Y
@@ -53,6 +53,9 @@ struct VolumeMeshResult {
   size_t tetgenRuns = 0;   ///< TetGen problems solved (one per material, or 1)
   size_t holePoints = 0;   ///< cavity points handed to the per-material runs
 };
+
+/// Report figures: tetgen_regions, tetgen_runs, tetgen_hole_points.
+ReportCounts reportCounts(const VolumeMeshResult& result);
 
 VolumeMeshResult buildVolumeMesh(const BoundarySurface& surface, const VolumeMeshParameters& params,
                                  RunContext& ctx);

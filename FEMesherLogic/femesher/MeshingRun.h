@@ -1,0 +1,125 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+/// \file MeshingRun.h
+/// One meshing run, stage by stage: what each stage hands to the next and the glue between them
+/// (the uniform edge length, the sizing function, unit conversions, the physical frame). This is
+/// the only code that connects stages: `runPipeline` runs every stage through it, and the CLI's
+/// `sizing` command and the tests run the first few, so they see exactly what a mesh run sees.
+///
+/// Usage: `MeshingRun run(input, params, ctx); run.runThrough(StageId::SizingField);` then read
+/// `run.state()`. Stages that a run's parameters switch off (MedialAxis and SizingField with
+/// uniform sizing, Fidelity with compute_fidelity off) are skipped. Each stage is timed and
+/// reported to the RunContext (progress, cancel). Errors are thrown as femesher::Error.
+
+#include <femesher/Parameters.h>
+#include <femesher/RunContext.h>
+#include <femesher/StageTable.h>
+#include <femesher/Types.h>
+#include <femesher/stages/BoundaryMesh.h>
+#include <femesher/stages/Fidelity.h>
+#include <femesher/stages/IndicatorFunctions.h>
+#include <femesher/stages/Junctions.h>
+#include <femesher/stages/LabelPreprocess.h>
+#include <femesher/stages/LocalDelaunay.h>
+#include <femesher/stages/Optimize.h>
+#include <femesher/stages/ParticleSystem.h>
+#include <femesher/stages/Quality.h>
+#include <femesher/stages/SizingField.h>
+#include <femesher/stages/SurfaceSampling.h>
+#include <femesher/stages/VolumeMesh.h>
+
+#include <memory>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace femesher {
+
+/// The interface surface handed to the volume mesher, and how it was made.
+struct InterfaceSurface {
+  BoundarySurface surface;
+  LocalDelaunayResult ldt;
+  bool ldtUsed = false;
+  double junctionShare = 0;
+  double restrictedSeconds = 0, ldtSeconds = 0;
+};
+
+struct StageTiming {
+  std::string name;
+  double seconds = 0;
+};
+
+/// What the stages of one run produced so far. Frames: see WorkingGrid.h.
+struct MeshingState {
+  PreprocessedVolume grid;                      ///< LabelPreprocess
+  std::unique_ptr<IndicatorField> field;        ///< IndicatorFunctions
+  double edgeLength = 0;                        ///< mm, the uniform edge length of the run
+  size_t medialVoxels = 0;                      ///< MedialAxis
+  std::shared_ptr<const SizingField> sizingField;  ///< SizingField (on `grid`, grid-mm frame)
+  SizingFunction sizing;                        ///< target edge length at a canonical point
+  SurfaceSamples samples;                       ///< SurfaceSampling
+  Junctions junctions;                          ///< Junctions
+  ParticleSystemResult particleSystem;          ///< ParticleSystem (empty when it is off)
+  std::vector<Vec3> particles;                  ///< the particle positions (local voxel index)
+  InterfaceSurface surface;                     ///< BoundaryMesh
+  VolumeMeshResult volumeMesh;                  ///< VolumeMesh then Optimize (canonical, compact)
+  OptimizeResult optimize;                      ///< Optimize
+  TetMesh mesh;                                 ///< physical LPS, user labels (after Optimize)
+  std::set<int32_t> meshedMaterials;            ///< compact labels present in `mesh`
+  QualityReport quality;                        ///< Quality
+  FidelityReport fidelity;                      ///< Fidelity
+  bool hasFidelity = false;
+  std::vector<StageTiming> timings;             ///< wall seconds per stage run, in run order
+};
+
+/// The stages `params` runs, in order, with their progress weights (for RunContext).
+std::vector<std::pair<std::string, double>> pipelineStagePlan(const MeshingParameters& params);
+bool stageEnabled(StageId id, const MeshingParameters& params);
+
+class MeshingRun {
+ public:
+  /// Validates `params` (throws Error(InvalidArgument)), applies the thread count to `ctx` and
+  /// declares the stage plan. `input` and `ctx` must outlive the run.
+  MeshingRun(const LabelVolume& input, const MeshingParameters& params, RunContext& ctx);
+
+  /// Runs every enabled stage after the last one run, up to and including `last`.
+  void runThrough(StageId last);
+  const MeshingState& state() const { return state_; }
+  MeshingState& state() { return state_; }
+  const LabelVolume& input() const { return input_; }
+  const MeshingParameters& parameters() const { return params_; }
+
+  /// The sizing field as an image on the working grid, placed in the input's physical space
+  /// (what `femesher sizing` writes). Requires the SizingField stage to have run.
+  LabelVolume sizingFieldGeometry() const { return state_.grid.geometryIn(input_); }
+
+  /// Every stage result's counts, in report order.
+  ReportCounts reportCounts() const;
+
+ private:
+  void run(StageId id);
+  void preprocess();
+  void indicatorFunctions();
+  void medialAxis();
+  void sizingField();
+  void surfaceSampling();
+  void junctions();
+  void particleSystem();
+  void boundaryMesh();
+  void volumeMesh();
+  void optimize();
+  void quality();
+  void fidelity();
+  /// Canonical frame, compact labels -> physical LPS, user labels; warns about lost materials.
+  void toPhysical();
+
+  const LabelVolume& input_;
+  const MeshingParameters params_;
+  RunContext& ctx_;
+  MeshingState state_;
+  LabelMedialAxes axes_;  ///< between MedialAxis and SizingField only
+  int next_ = 0;          ///< index in stageTable() of the next stage to run
+};
+
+}  // namespace femesher

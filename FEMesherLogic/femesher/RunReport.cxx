@@ -1,0 +1,75 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/RunReport.h>
+#include <femesher/Version.h>
+
+#include <nlohmann/json.hpp>
+
+namespace femesher {
+
+namespace {
+
+using json = nlohmann::json;
+
+json geometryJson(const LabelVolume& in) {
+  json g;
+  g["path"] = in.sourcePath;
+  g["dims"] = in.dims;
+  g["spacing"] = in.spacing;
+  g["origin"] = in.origin;
+  g["direction"] = in.direction;
+  g["space"] = "LPS";
+  return g;
+}
+
+json labelsJson(const MeshingState& s) {
+  const PreprocessedVolume& vol = s.grid;
+  json labels = json::array();
+  for (int m = 1; m <= vol.materialCount(); ++m)
+    labels.push_back({{"id", vol.userLabel[m]}, {"name", vol.materials[m].name},
+                      {"color", vol.materials[m].color}, {"voxels", vol.voxelCounts[m]},
+                      {"in_mesh", s.meshedMaterials.count(m) > 0}});
+  return labels;
+}
+
+}  // namespace
+
+std::string runReportJson(const MeshingRun& run, const std::vector<std::string>& warnings,
+                          double totalSeconds) {
+  const MeshingState& s = run.state();
+  const MeshingParameters& params = run.parameters();
+  json report;
+  report["femesher_version"] = FEMESHER_VERSION;
+  report["libraries"] = {{"ITK", FEMESHER_ITK_VERSION}, {"VTK", FEMESHER_VTK_VERSION},
+                         {"CGAL", FEMESHER_CGAL_VERSION}, {"TetGen", FEMESHER_TETGEN_VERSION}};
+  report["input"] = geometryJson(run.input());
+  report["input"]["labels"] = labelsJson(s);
+  report["input"]["dropped_labels"] = s.grid.droppedLabels;
+  if (!s.grid.excludedLabels.empty()) report["input"]["excluded_labels"] = s.grid.excludedLabels;
+  report["parameters"] = json::parse(parametersToJson(params));
+  json stages = json::array();
+  for (const auto& t : s.timings) stages.push_back({{"name", t.name}, {"seconds", t.seconds}});
+  report["stages"] = stages;
+  report["total_seconds"] = totalSeconds;
+  json counts = json::object();
+  for (const auto& [k, v] : run.reportCounts()) counts[k] = v;
+  report["counts"] = counts;
+  const std::string mesher = surfaceMesherName(params.boundary.mesher);
+  const bool ldtAsked = params.boundary.mesher == SurfaceMesher::LocalDelaunay;
+  report["surface_mesher"] = mesher;
+  report["surface_mesher_used"] =
+      ldtAsked && !s.surface.ldtUsed ? "delaunay (ldt surface not watertight)" : mesher;
+  // Wall seconds of the two surface meshers inside the BoundaryMesh stage (the local Delaunay
+  // one runs after, and uses, the restricted Delaunay one).
+  report["surface_mesher_seconds"] = {{"restricted_delaunay", s.surface.restrictedSeconds},
+                                      {"ldt", s.surface.ldtSeconds}};
+  report["volume_mesh"] = {{"method", s.volumeMesh.method},
+                           {"tetgen_switches", s.volumeMesh.switches},
+                           {"dropped_cavity_tets", s.volumeMesh.droppedCavityTets}};
+  report["quality"] = json::parse(qualityReportToJson(s.quality, true));
+  if (s.hasFidelity) report["fidelity"] = json::parse(fidelityReportToJson(s.fidelity));
+  report["warnings"] = warnings;
+  report["status"] = "ok";
+  return report.dump(2);
+}
+
+}  // namespace femesher
