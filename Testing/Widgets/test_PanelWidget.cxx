@@ -119,17 +119,17 @@ class PanelWidgetTest : public QObject {
   void presetsAndParameters() {
     QVERIFY(panel_->applyPreset(QStringLiteral("coarse")));
     QCOMPARE(panel_->currentPreset(), QStringLiteral("coarse"));
-    QCOMPARE(spin("edge_length_factor")->value(), presetParameters("coarse")->edgeLengthFactor);
-    QCOMPARE(panel_->parameters().edgeLengthFactor, presetParameters("coarse")->edgeLengthFactor);
+    QCOMPARE(spin("edge_length_factor")->value(), presetParameters("coarse")->sizing.edgeLengthFactor);
+    QCOMPARE(panel_->parameters().sizing.edgeLengthFactor, presetParameters("coarse")->sizing.edgeLengthFactor);
     QVERIFY(panel_->applyPreset(QStringLiteral("fine")));
-    QCOMPARE(panel_->parameters().edgeLengthFactor, presetParameters("fine")->edgeLengthFactor);
+    QCOMPARE(panel_->parameters().sizing.edgeLengthFactor, presetParameters("fine")->sizing.edgeLengthFactor);
     QVERIFY(!panel_->applyPreset(QStringLiteral("ultra")));
     // Editing a value switches to Custom and lands in the struct.
     spin("smoothing_sigma")->setValue(1.25);
     QCOMPARE(panel_->currentPreset(), QStringLiteral("custom"));
-    QCOMPARE(panel_->parameters().smoothingSigma, 1.25);
+    QCOMPARE(panel_->parameters().indicators.sigma, 1.25);
     spin("target_edge_length")->setValue(2.5);
-    QCOMPARE(panel_->parameters().targetEdgeLength, 2.5);
+    QCOMPARE(panel_->parameters().sizing.targetEdgeLength, 2.5);
     QCOMPARE(spin("target_edge_length")->suffix(), QStringLiteral(" mm"));
     // Every descriptor has an editor with its help as tooltip; advanced ones sit in the group.
     for (const auto& d : parameterDescriptors()) {
