@@ -1,0 +1,134 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/Version.h>
+#include <femesher/io/MeshFormats.h>
+#include <femesher/io/VtkConversion.h>
+
+#include <vtkCellData.h>
+#include <vtkDoubleArray.h>
+#include <vtkFieldData.h>
+#include <vtkIdList.h>
+#include <vtkIntArray.h>
+#include <vtkNew.h>
+#include <vtkPoints.h>
+#include <vtkStringArray.h>
+#include <vtkUnstructuredGrid.h>
+
+#include <cmath>
+
+namespace femesher {
+
+namespace {
+
+using meshio::fail;
+
+/// LPS <-> RAS (its own inverse); identity when the frame is LPS.
+Vec3 toFrame(const Vec3& p, VtkFrame frame) {
+  return frame == VtkFrame::RAS ? Vec3{{-p[0], -p[1], p[2]}} : p;
+}
+
+void addString(vtkFieldData* fd, const char* name, const std::string& value) {
+  vtkNew<vtkStringArray> a;
+  a->SetName(name);
+  a->InsertNextValue(value);
+  fd->AddArray(a);
+}
+
+void addFieldData(const TetMesh& m, const VtkGridOptions& o, vtkFieldData* fd) {
+  addString(fd, "SPACE", o.frame == VtkFrame::RAS ? "RAS" : "LPS");
+  vtkNew<vtkIntArray> ids;
+  ids->SetName("MaterialIds");
+  vtkNew<vtkStringArray> names;
+  names->SetName("MaterialNames");
+  vtkNew<vtkDoubleArray> colors;
+  colors->SetName("MaterialColors");
+  colors->SetNumberOfComponents(3);
+  for (int32_t l : meshio::meshLabels(m)) {
+    const Material* mat = findMaterial(m.materials, l);
+    ids->InsertNextValue(l);
+    names->InsertNextValue(meshio::materialName(m, l));
+    const auto c = mat ? mat->color : defaultLabelColor(l);
+    colors->InsertNextTuple(c.data());
+  }
+  fd->AddArray(ids);
+  fd->AddArray(names);
+  fd->AddArray(colors);
+  addString(fd, "FEMesherVersion", FEMESHER_VERSION);
+  if (!o.provenance.empty()) addString(fd, "Provenance", o.provenance);
+}
+
+/// Material names and colours from the field data written by `addFieldData`.
+void readFieldData(vtkFieldData* fd, std::map<int32_t, std::string>& names,
+                   std::map<int32_t, std::array<double, 3>>& colors) {
+  auto* idArr = vtkIntArray::SafeDownCast(fd ? fd->GetAbstractArray("MaterialIds") : nullptr);
+  auto* nameArr = vtkStringArray::SafeDownCast(fd ? fd->GetAbstractArray("MaterialNames") : nullptr);
+  auto* colorArr = vtkDataArray::SafeDownCast(fd ? fd->GetAbstractArray("MaterialColors") : nullptr);
+  if (!idArr) return;
+  for (vtkIdType k = 0; k < idArr->GetNumberOfValues(); ++k) {
+    if (nameArr && k < nameArr->GetNumberOfValues()) names[idArr->GetValue(k)] = nameArr->GetValue(k);
+    if (colorArr && colorArr->GetNumberOfComponents() == 3 && k < colorArr->GetNumberOfTuples()) {
+      double c[3];
+      colorArr->GetTuple(k, c);
+      colors[idArr->GetValue(k)] = {c[0], c[1], c[2]};
+    }
+  }
+}
+
+}  // namespace
+
+void meshToVtkGrid(const TetMesh& m, vtkUnstructuredGrid* ug, const VtkGridOptions& o) {
+  ug->Initialize();
+  vtkNew<vtkPoints> pts;
+  pts->SetDataTypeToDouble();
+  pts->SetNumberOfPoints(vtkIdType(m.points.size()));
+  for (size_t i = 0; i < m.points.size(); ++i)
+    pts->SetPoint(vtkIdType(i), toFrame(m.points[i], o.frame).data());
+  ug->SetPoints(pts);
+  ug->Allocate(vtkIdType(m.tets.size()));
+  for (const auto& t : m.tets) {
+    const vtkIdType ids[4] = {t[0], t[1], t[2], t[3]};
+    ug->InsertNextCell(VTK_TETRA, 4, ids);
+  }
+  vtkNew<vtkIntArray> labels;
+  labels->SetName("labels");
+  labels->SetNumberOfValues(vtkIdType(m.tetLabels.size()));
+  for (size_t i = 0; i < m.tetLabels.size(); ++i) labels->SetValue(vtkIdType(i), m.tetLabels[i]);
+  ug->GetCellData()->AddArray(labels);
+  ug->GetCellData()->SetActiveScalars("labels");
+  if (o.fieldData) addFieldData(m, o, ug->GetFieldData());
+}
+
+Result<TetMesh> vtkGridToMesh(vtkUnstructuredGrid* ug, const std::string& path, VtkFrame frame) {
+  if (!ug || ug->GetNumberOfCells() == 0) return fail(ErrorCode::CorruptFile, path, "it holds no cells.");
+  vtkDataArray* labels = ug->GetCellData()->GetArray("labels");
+  if (!labels || labels->GetNumberOfTuples() != ug->GetNumberOfCells())
+    return fail(ErrorCode::UnreadableFile, path,
+                "it has no cell array 'labels' with one material id per cell (not a labelled mesh; "
+                "write it with FEMesher or add an integer cell array named 'labels').");
+  TetMesh m;
+  m.points.resize(size_t(ug->GetNumberOfPoints()));
+  for (vtkIdType i = 0; i < ug->GetNumberOfPoints(); ++i) {
+    ug->GetPoint(i, m.points[size_t(i)].data());
+    m.points[size_t(i)] = toFrame(m.points[size_t(i)], frame);
+  }
+  m.tets.reserve(size_t(ug->GetNumberOfCells()));
+  vtkNew<vtkIdList> ids;
+  for (vtkIdType c = 0; c < ug->GetNumberOfCells(); ++c) {
+    if (ug->GetCellType(c) != VTK_TETRA)
+      return fail(ErrorCode::UnreadableFile, path,
+                  "cell " + std::to_string(c) + " is not a linear tetrahedron (VTK type " +
+                      std::to_string(ug->GetCellType(c)) + ").");
+    ug->GetCellPoints(c, ids);
+    m.tets.push_back({int32_t(ids->GetId(0)), int32_t(ids->GetId(1)), int32_t(ids->GetId(2)),
+                      int32_t(ids->GetId(3))});
+    const double v = labels->GetTuple1(c);
+    if (v != std::floor(v) || std::fabs(v) > 2147483647.0)
+      return fail(ErrorCode::CorruptFile, path, "cell array 'labels' holds a non-integer value.");
+    m.tetLabels.push_back(int32_t(v));
+  }
+  std::map<int32_t, std::string> names;
+  std::map<int32_t, std::array<double, 3>> colors;
+  readFieldData(ug->GetFieldData(), names, colors);
+  return meshio::finishRead(std::move(m), path, names, colors);
+}
+
+}  // namespace femesher
