@@ -1,5 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/VecMath.h>
 #include <femesher/Version.h>
+#include <femesher/io/LabelValidation.h>
 #include <femesher/io/MeshFormats.h>
 #include <femesher/io/VtkConversion.h>
 
@@ -7,8 +9,11 @@
 #include <vtkDoubleArray.h>
 #include <vtkFieldData.h>
 #include <vtkIdList.h>
+#include <vtkImageData.h>
 #include <vtkIntArray.h>
+#include <vtkMatrix4x4.h>
 #include <vtkNew.h>
+#include <vtkPointData.h>
 #include <vtkPoints.h>
 #include <vtkStringArray.h>
 #include <vtkUnstructuredGrid.h>
@@ -73,6 +78,25 @@ void readFieldData(vtkFieldData* fd, std::map<int32_t, std::string>& names,
   }
 }
 
+/// Spacing, direction and origin from an IJK -> `frame` matrix; `extent` as vtkImageData's.
+void setGeometry(const vtkMatrix4x4& ijkToWorld, const int extent[6], VtkFrame frame,
+                 LabelVolume& v) {
+  for (int c = 0; c < 3; ++c) {
+    v.dims[c] = extent[2 * c + 1] - extent[2 * c] + 1;
+    const Vec3 column = toFrame(
+        {ijkToWorld.GetElement(0, c), ijkToWorld.GetElement(1, c), ijkToWorld.GetElement(2, c)},
+        frame);
+    v.spacing[c] = norm(column);
+    for (int r = 0; r < 3; ++r)
+      v.direction[3 * r + c] = v.spacing[c] > 0 ? column[r] / v.spacing[c] : 0.0;
+  }
+  Vec3 first;
+  for (int r = 0; r < 3; ++r)
+    first[r] = ijkToWorld.GetElement(r, 0) * extent[0] + ijkToWorld.GetElement(r, 1) * extent[2] +
+               ijkToWorld.GetElement(r, 2) * extent[4] + ijkToWorld.GetElement(r, 3);
+  v.origin = toFrame(first, frame);
+}
+
 }  // namespace
 
 void meshToVtkGrid(const TetMesh& m, vtkUnstructuredGrid* ug, const VtkGridOptions& o) {
@@ -129,6 +153,44 @@ Result<TetMesh> vtkGridToMesh(vtkUnstructuredGrid* ug, const std::string& path, 
   std::map<int32_t, std::array<double, 3>> colors;
   readFieldData(ug->GetFieldData(), names, colors);
   return meshio::finishRead(std::move(m), path, names, colors);
+}
+
+Result<LabelVolume> labelVolumeFromVtkImage(vtkImageData* image, const vtkMatrix4x4* ijkToWorld,
+                                            VtkFrame frame, const std::string& source) {
+  using R = Result<LabelVolume>;
+  const std::string name = "'" + source + "'";
+  vtkDataArray* scalars = image && image->GetPointData() ? image->GetPointData()->GetScalars() : nullptr;
+  if (!scalars || !ijkToWorld)
+    return R(ErrorCode::InvalidArgument, name + " has no image data or no voxel-to-world matrix.");
+  if (scalars->GetNumberOfComponents() != 1)
+    return R(ErrorCode::InvalidArgument,
+             name + " has " + std::to_string(scalars->GetNumberOfComponents()) +
+                 " values per voxel; FEMesher needs one integer label per voxel.");
+  VoxelType type = VoxelType::Int32;
+  switch (scalars->GetDataType()) {
+    vtkTemplateMacro(type = voxelTypeOf<VTK_TT>());
+    default:
+      return R(ErrorCode::InvalidArgument, name + " has an unsupported scalar type (" +
+                                               scalars->GetDataTypeAsString() +
+                                               "); use integer voxels.");
+  }
+  int extent[6];
+  image->GetExtent(extent);
+  LabelVolume v;
+  v.sourcePath = source;
+  setGeometry(*ijkToWorld, extent, frame, v);
+  if (Status s = validateLabelGeometry(v, source); !s) return s;
+  if (size_t(scalars->GetNumberOfTuples()) != v.voxelCount())
+    return R(ErrorCode::InvalidArgument,
+             name + " has " + std::to_string(scalars->GetNumberOfTuples()) + " values for " +
+                 std::to_string(v.voxelCount()) + " voxels.");
+  auto labels = labelsFromVoxels(scalars->GetVoidPointer(0), type, v.voxelCount(), source);
+  if (!labels) return labels.status();
+  v.labels = std::move(labels).value();
+  const auto present = validateLabelVolume(v, source);
+  if (!present) return present.status();
+  v.materials = defaultMaterials(present.value());
+  return v;
 }
 
 }  // namespace femesher

@@ -6,6 +6,8 @@
 /// module. VTK classes are only forward-declared, so including this header needs no VTK include
 /// path; calling it needs VTK (CommonDataModel) linked.
 ///
+/// Label maps come in through `labelVolumeFromVtkImage`, checked as LabelValidation.h says.
+///
 /// Frames: FEMesher is in LPS millimetres (the ITK convention, see Types.h). A VTK object may be
 /// in LPS (files, the GUI view) or in RAS (3D Slicer's scene); LPS <-> RAS negates x and y, a
 /// rotation by 180 degrees about S, so tets keep their orientation. Nothing else is changed:
@@ -16,6 +18,8 @@
 
 #include <string>
 
+class vtkImageData;
+class vtkMatrix4x4;
 class vtkUnstructuredGrid;
 
 namespace femesher {
@@ -51,5 +55,18 @@ void meshToVtkGrid(const TetMesh& mesh, vtkUnstructuredGrid* grid,
 /// one value per cell, a cell that is not a linear tetrahedron).
 Result<TetMesh> vtkGridToMesh(vtkUnstructuredGrid* grid, const std::string& source,
                               VtkFrame frame = VtkFrame::LPS);
+
+/// A label map held as a VTK image plus the matrix mapping its voxel indices (i, j, k, 1) to
+/// `frame` mm, the way 3D Slicer keeps label map volumes (the image's own origin, spacing and
+/// direction are not used). The image has one scalar component of any integer or floating-point
+/// type; its voxels are read x fastest over its extent. The lengths of the matrix's first three
+/// columns are the spacing, the normalized columns the direction (converted to LPS), and the
+/// origin is the centre of the first voxel of the extent. Materials: one per label present,
+/// "label N" coloured defaultLabelColor(N); `sourcePath` = `source`.
+/// Errors, each naming `source`: InvalidArgument (no image, scalars or matrix; several components
+/// per voxel; an unsupported scalar type; fewer or more values than voxels), then the errors of
+/// validateLabelGeometry, labelsFromVoxels and validateLabelVolume (LabelValidation.h).
+Result<LabelVolume> labelVolumeFromVtkImage(vtkImageData* image, const vtkMatrix4x4* ijkToWorld,
+                                            VtkFrame frame, const std::string& source);
 
 }  // namespace femesher
