@@ -3,7 +3,6 @@
 // buffers and volumes built in memory: voxel types and their conversion, geometry, the label
 // count limits, distinct labels and the default material table.
 #include <femesher/io/LabelValidation.h>
-
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -50,7 +49,8 @@ TEST(LabelValidation, VoxelTypeOfEveryArithmeticType) {
   EXPECT_EQ(voxelTypeOf<float>(), VoxelType::Float32);
   EXPECT_EQ(voxelTypeOf<double>(), VoxelType::Float64);
   EXPECT_EQ(voxelTypeOf<long long>(), VoxelType::Int64);
-  EXPECT_EQ(voxelTypeOf<unsigned long>(), sizeof(long) == 8 ? VoxelType::UInt64 : VoxelType::UInt32);
+  EXPECT_EQ(voxelTypeOf<unsigned long>(),
+            sizeof(long) == 8 ? VoxelType::UInt64 : VoxelType::UInt32);
 }
 
 TEST(LabelValidation, IntegerVoxelsWithinInt32AreLabels) {
@@ -67,8 +67,10 @@ TEST(LabelValidation, IntegerVoxelsWithinInt32AreLabels) {
 TEST(LabelValidation, OutOfRangeIntegersAreNotALabelMap) {
   expectError(convert<uint32_t>({1, 2147483648u}).status(), ErrorCode::NotALabelMap, "uint32 2^31");
   expectError(convert<int64_t>({-2147483649LL}).status(), ErrorCode::NotALabelMap, "int64 below");
-  expectError(convert<uint64_t>({uint64_t(1) << 40}).status(), ErrorCode::NotALabelMap, "uint64 2^40");
-  EXPECT_NE(convert<int64_t>({int64_t(1) << 33}).status().message().find("32-bit"), std::string::npos);
+  expectError(convert<uint64_t>({uint64_t(1) << 40}).status(), ErrorCode::NotALabelMap,
+              "uint64 2^40");
+  EXPECT_NE(convert<int64_t>({int64_t(1) << 33}).status().message().find("32-bit"),
+            std::string::npos);
 }
 
 TEST(LabelValidation, FloatVoxelsMustAllBeIntegers) {
@@ -99,7 +101,8 @@ TEST(LabelValidation, GeometryNeedsPositiveSpacingIndependentAxesAndVoxels) {
   expectError(validateLabelGeometry(bad, "in.nrrd"), ErrorCode::CorruptFile, "NaN spacing");
   bad = v;
   bad.direction = {1, 0, 1, 0, 1, 0, 1, 0, 1};  // first and third axes equal
-  expectError(validateLabelGeometry(bad, "in.nrrd"), ErrorCode::CorruptFile, "degenerate direction");
+  expectError(validateLabelGeometry(bad, "in.nrrd"), ErrorCode::CorruptFile,
+              "degenerate direction");
   bad = v;
   bad.dims = {4, 0, 2};
   expectError(validateLabelGeometry(bad, "in.nrrd"), ErrorCode::EmptyLabelMap, "no voxels");
@@ -117,8 +120,9 @@ TEST(LabelValidation, VolumeReturnsItsLabelsWithoutBackground) {
 }
 
 TEST(LabelValidation, VolumeErrors) {
-  expectError(validateLabelVolume(volumeOf({2, 2, 2}, std::vector<int32_t>(8, 0)), "in.nrrd").status(),
-              ErrorCode::EmptyLabelMap, "only background");
+  expectError(
+      validateLabelVolume(volumeOf({2, 2, 2}, std::vector<int32_t>(8, 0)), "in.nrrd").status(),
+      ErrorCode::EmptyLabelMap, "only background");
   expectError(validateLabelVolume(volumeOf({2, 2, 2}, {1, 2, 3}), "in.nrrd").status(),
               ErrorCode::InvalidArgument, "3 labels for 8 voxels");
   LabelVolume zeroSpacing = volumeOf({1, 1, 1}, {1});

@@ -6,7 +6,6 @@
 #include <femesher/Version.h>
 #include <femesher/io/MeshIO.h>
 #include <femesher/io/VtkConversion.h>
-
 #include <gtest/gtest.h>
 #include <vtkCellData.h>
 #include <vtkDoubleArray.h>
@@ -274,7 +273,9 @@ TEST(VtkConversion, GridToMeshErrorsNameTheSource) {
 }
 
 TEST(VtkConversion, ImageWithObliqueRasMatrixGivesLpsGeometry) {
-  auto label = [](int i, int j, int k) { return (i + 2 * j + k) % 3 == 0 ? 0 : 1 + (i + j + k) % 2 * 40; };
+  auto label = [](int i, int j, int k) {
+    return (i + 2 * j + k) % 3 == 0 ? 0 : 1 + (i + j + k) % 2 * 40;
+  };
   auto image = makeImage<vtkUnsignedShortArray>(label);
   vtkNew<vtkMatrix4x4> ijkToRas;
   obliqueIjkToRas(ijkToRas);

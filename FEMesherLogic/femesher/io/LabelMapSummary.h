@@ -22,11 +22,11 @@ struct LabelStatistics {
   std::string name;
   size_t voxels = 0;
   double volumeMm3 = 0;
-  int components = 0;               ///< 6-connected components
+  int components = 0;                                         ///< 6-connected components
   std::array<int, 3> bboxMin{{0, 0, 0}}, bboxMax{{0, 0, 0}};  ///< voxel index bounding box
 };
 struct LabelMapSummary {
-  std::vector<LabelStatistics> labels;  ///< background (0) first when present
+  std::vector<LabelStatistics> labels;                     ///< background (0) first when present
   std::vector<std::pair<int32_t, int32_t>> touchingPairs;  ///< 6-neighbour, a < b
   size_t tripleCells = 0;     ///< 2x2x2 cells holding >= 3 distinct labels
   size_t quadrupleCells = 0;  ///< 2x2x2 cells holding >= 4 distinct labels

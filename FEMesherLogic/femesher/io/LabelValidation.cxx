@@ -37,7 +37,8 @@ Conversion convertBuffer(const void* data, size_t n, std::vector<int32_t>& out) 
     for (size_t i = 0; i < n; ++i) {
       const T v = p[i];
       if constexpr (std::is_signed_v<T>)
-        bad |= v < T(std::numeric_limits<int32_t>::min()) || v > T(std::numeric_limits<int32_t>::max());
+        bad |= v < T(std::numeric_limits<int32_t>::min()) ||
+               v > T(std::numeric_limits<int32_t>::max());
       else
         bad |= v > T(std::numeric_limits<int32_t>::max());
       o[i] = int32_t(v);
@@ -54,14 +55,16 @@ Result<std::vector<int32_t>> convert(const void* values, size_t count, const std
   if (c == Conversion::NonInteger)
     return Result<std::vector<int32_t>>(
         ErrorCode::NotALabelMap,
-        quoted(source) + " holds non-integer values: it looks like a CT/intensity image, not labels. "
-                         "Segment it first (e.g. in 3D Slicer's Segment Editor) and export the "
-                         "segmentation as a label map.");
+        quoted(source) +
+            " holds non-integer values: it looks like a CT/intensity image, not labels. "
+            "Segment it first (e.g. in 3D Slicer's Segment Editor) and export the "
+            "segmentation as a label map.");
   if (c == Conversion::OutOfRange)
     return Result<std::vector<int32_t>>(
         ErrorCode::NotALabelMap,
-        quoted(source) + " holds values outside the 32-bit integer range, which cannot be labels. "
-                         "Check that this is a label map; renumber the labels if it is.");
+        quoted(source) +
+            " holds values outside the 32-bit integer range, which cannot be labels. "
+            "Check that this is a label map; renumber the labels if it is.");
   return labels;
 }
 
@@ -70,16 +73,26 @@ Result<std::vector<int32_t>> convert(const void* values, size_t count, const std
 Result<std::vector<int32_t>> labelsFromVoxels(const void* values, VoxelType type, size_t count,
                                               const std::string& source) {
   switch (type) {
-    case VoxelType::UInt8: return convert<uint8_t>(values, count, source);
-    case VoxelType::Int8: return convert<int8_t>(values, count, source);
-    case VoxelType::UInt16: return convert<uint16_t>(values, count, source);
-    case VoxelType::Int16: return convert<int16_t>(values, count, source);
-    case VoxelType::UInt32: return convert<uint32_t>(values, count, source);
-    case VoxelType::Int32: return convert<int32_t>(values, count, source);
-    case VoxelType::UInt64: return convert<uint64_t>(values, count, source);
-    case VoxelType::Int64: return convert<int64_t>(values, count, source);
-    case VoxelType::Float32: return convert<float>(values, count, source);
-    case VoxelType::Float64: return convert<double>(values, count, source);
+    case VoxelType::UInt8:
+      return convert<uint8_t>(values, count, source);
+    case VoxelType::Int8:
+      return convert<int8_t>(values, count, source);
+    case VoxelType::UInt16:
+      return convert<uint16_t>(values, count, source);
+    case VoxelType::Int16:
+      return convert<int16_t>(values, count, source);
+    case VoxelType::UInt32:
+      return convert<uint32_t>(values, count, source);
+    case VoxelType::Int32:
+      return convert<int32_t>(values, count, source);
+    case VoxelType::UInt64:
+      return convert<uint64_t>(values, count, source);
+    case VoxelType::Int64:
+      return convert<int64_t>(values, count, source);
+    case VoxelType::Float32:
+      return convert<float>(values, count, source);
+    case VoxelType::Float64:
+      return convert<double>(values, count, source);
   }
   return Result<std::vector<int32_t>>(ErrorCode::Internal, "labelsFromVoxels: unknown voxel type");
 }
@@ -91,8 +104,9 @@ Status validateLabelGeometry(const LabelVolume& v, const std::string& source) {
                                           std::to_string(v.spacing[a]) + " mm along axis " +
                                           std::to_string(a) + "; fix the header's spacing."};
   if (std::fabs(v.directionDeterminant()) < 1e-6)
-    return {ErrorCode::CorruptFile, quoted(source) + " has a degenerate direction matrix (axes not "
-                                                     "independent); fix the header's orientation."};
+    return {ErrorCode::CorruptFile, quoted(source) +
+                                        " has a degenerate direction matrix (axes not "
+                                        "independent); fix the header's orientation."};
   if (v.voxelCount() == 0) return {ErrorCode::EmptyLabelMap, quoted(source) + " has no voxels."};
   return Status::ok();
 }
@@ -101,19 +115,21 @@ Result<std::vector<int32_t>> validateLabelVolume(const LabelVolume& v, const std
   using R = Result<std::vector<int32_t>>;
   if (Status s = validateLabelGeometry(v, source); !s) return s;
   if (v.labels.size() != v.voxelCount())
-    return R(ErrorCode::InvalidArgument, quoted(source) + " holds " + std::to_string(v.labels.size()) +
-                                             " labels for " + std::to_string(v.voxelCount()) +
-                                             " voxels.");
+    return R(ErrorCode::InvalidArgument, quoted(source) + " holds " +
+                                             std::to_string(v.labels.size()) + " labels for " +
+                                             std::to_string(v.voxelCount()) + " voxels.");
   std::vector<int32_t> present = distinctLabels(v.labels, kMaxLabels + 1);
   present.erase(std::remove(present.begin(), present.end(), 0), present.end());
   if (present.size() > kMaxLabels)
     return R(ErrorCode::TooManyLabels,
-             quoted(source) + " has more than 65,535 distinct labels: it is probably an intensity image "
-                              "stored as integers, not a segmentation. Segment it first, or merge labels.");
+             quoted(source) +
+                 " has more than 65,535 distinct labels: it is probably an intensity image "
+                 "stored as integers, not a segmentation. Segment it first, or merge labels.");
   if (present.empty())
     return R(ErrorCode::EmptyLabelMap,
-             quoted(source) + " holds only background (0): there is nothing to mesh. Check that you "
-                              "picked the segmentation and that it is not empty.");
+             quoted(source) +
+                 " holds only background (0): there is nothing to mesh. Check that you "
+                 "picked the segmentation and that it is not empty.");
   return present;
 }
 
@@ -149,7 +165,8 @@ std::vector<int32_t> distinctLabels(const std::vector<int32_t>& labels, size_t l
 std::vector<Material> defaultMaterials(const std::vector<int32_t>& ids) {
   std::vector<Material> table;
   table.reserve(ids.size());
-  for (int32_t id : ids) table.push_back({id, "label " + std::to_string(id), defaultLabelColor(id)});
+  for (int32_t id : ids)
+    table.push_back({id, "label " + std::to_string(id), defaultLabelColor(id)});
   return table;
 }
 

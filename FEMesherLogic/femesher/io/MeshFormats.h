@@ -32,14 +32,16 @@ Status writeMedit(const TetMesh& m, const std::string& path, const ExportOptions
 Status writeFeb(const TetMesh& m, const std::string& path, const ExportOptions& o);
 Status writeStl(const TetMesh& m, const std::string& path, const ExportOptions& o);
 
-// --- Readers ---------------------------------------------------------------------------------------
+// --- Readers
+// ---------------------------------------------------------------------------------------
 
 Result<TetMesh> readVtu(const std::string& path);
 Result<TetMesh> readLegacyVtk(const std::string& path);
 Result<TetMesh> readMedit(const std::string& path);
 Result<TetMesh> readMsh(const std::string& path);
 
-// --- Shared helpers (io/MeshFormats.cxx) -----------------------------------------------------------
+// --- Shared helpers (io/MeshFormats.cxx)
+// -----------------------------------------------------------
 
 /// (labelA, labelB) of an interface patch; labelB = kExteriorLabel on the outer boundary.
 using PatchKey = std::pair<int32_t, int32_t>;
@@ -112,8 +114,9 @@ class Tokens {
   T get(const char* what) {
     T v{};
     if (!(in_ >> v))
-      throw Error(ErrorCode::CorruptFile, "Cannot read mesh '" + path_ + "': truncated or malformed " +
-                                              std::string(what) + ".");
+      throw Error(
+          ErrorCode::CorruptFile,
+          "Cannot read mesh '" + path_ + "': truncated or malformed " + std::string(what) + ".");
     return v;
   }
   void skipLine() {

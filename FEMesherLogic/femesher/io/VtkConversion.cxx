@@ -4,7 +4,6 @@
 #include <femesher/io/LabelValidation.h>
 #include <femesher/io/MeshFormats.h>
 #include <femesher/io/VtkConversion.h>
-
 #include <vtkCellData.h>
 #include <vtkDoubleArray.h>
 #include <vtkFieldData.h>
@@ -65,11 +64,14 @@ void addFieldData(const TetMesh& m, const VtkGridOptions& o, vtkFieldData* fd) {
 void readFieldData(vtkFieldData* fd, std::map<int32_t, std::string>& names,
                    std::map<int32_t, std::array<double, 3>>& colors) {
   auto* idArr = vtkIntArray::SafeDownCast(fd ? fd->GetAbstractArray("MaterialIds") : nullptr);
-  auto* nameArr = vtkStringArray::SafeDownCast(fd ? fd->GetAbstractArray("MaterialNames") : nullptr);
-  auto* colorArr = vtkDataArray::SafeDownCast(fd ? fd->GetAbstractArray("MaterialColors") : nullptr);
+  auto* nameArr =
+      vtkStringArray::SafeDownCast(fd ? fd->GetAbstractArray("MaterialNames") : nullptr);
+  auto* colorArr =
+      vtkDataArray::SafeDownCast(fd ? fd->GetAbstractArray("MaterialColors") : nullptr);
   if (!idArr) return;
   for (vtkIdType k = 0; k < idArr->GetNumberOfValues(); ++k) {
-    if (nameArr && k < nameArr->GetNumberOfValues()) names[idArr->GetValue(k)] = nameArr->GetValue(k);
+    if (nameArr && k < nameArr->GetNumberOfValues())
+      names[idArr->GetValue(k)] = nameArr->GetValue(k);
     if (colorArr && colorArr->GetNumberOfComponents() == 3 && k < colorArr->GetNumberOfTuples()) {
       double c[3];
       colorArr->GetTuple(k, c);
@@ -122,7 +124,8 @@ void meshToVtkGrid(const TetMesh& m, vtkUnstructuredGrid* ug, const VtkGridOptio
 }
 
 Result<TetMesh> vtkGridToMesh(vtkUnstructuredGrid* ug, const std::string& path, VtkFrame frame) {
-  if (!ug || ug->GetNumberOfCells() == 0) return fail(ErrorCode::CorruptFile, path, "it holds no cells.");
+  if (!ug || ug->GetNumberOfCells() == 0)
+    return fail(ErrorCode::CorruptFile, path, "it holds no cells.");
   vtkDataArray* labels = ug->GetCellData()->GetArray("labels");
   if (!labels || labels->GetNumberOfTuples() != ug->GetNumberOfCells())
     return fail(ErrorCode::UnreadableFile, path,
@@ -159,7 +162,8 @@ Result<LabelVolume> labelVolumeFromVtkImage(vtkImageData* image, const vtkMatrix
                                             VtkFrame frame, const std::string& source) {
   using R = Result<LabelVolume>;
   const std::string name = "'" + source + "'";
-  vtkDataArray* scalars = image && image->GetPointData() ? image->GetPointData()->GetScalars() : nullptr;
+  vtkDataArray* scalars =
+      image && image->GetPointData() ? image->GetPointData()->GetScalars() : nullptr;
   if (!scalars || !ijkToWorld)
     return R(ErrorCode::InvalidArgument, name + " has no image data or no voxel-to-world matrix.");
   if (scalars->GetNumberOfComponents() != 1)
