@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include "qFEMesherPreviewView.h"
 
+#include <femesher/io/VtkConversion.h>
+
 #include <QVTKOpenGLNativeWidget.h>
 
 #include <vtkActor.h>
@@ -11,7 +13,6 @@
 #include <vtkDoubleArray.h>
 #include <vtkExtractGeometry.h>
 #include <vtkGenericOpenGLRenderWindow.h>
-#include <vtkIntArray.h>
 #include <vtkLegendBoxActor.h>
 #include <vtkLookupTable.h>
 #include <vtkOutlineSource.h>
@@ -413,26 +414,7 @@ void qFEMesherPreviewView::setMesh(std::shared_ptr<const femesher::TetMesh> mesh
   for (const auto& m : mesh_->materials)
     if (!femesher::findMaterial(materials_, m.id)) materials_.push_back(m);
 
-  auto pts = vtkSmartPointer<vtkPoints>::New();
-  pts->SetDataTypeToDouble();
-  pts->SetNumberOfPoints(vtkIdType(mesh_->points.size()));
-  for (size_t i = 0; i < mesh_->points.size(); ++i)
-    pts->SetPoint(vtkIdType(i), mesh_->points[i].data());
-  auto cells = vtkSmartPointer<vtkCellArray>::New();
-  cells->AllocateExact(vtkIdType(mesh_->tets.size()), vtkIdType(4 * mesh_->tets.size()));
-  auto labels = vtkSmartPointer<vtkIntArray>::New();
-  labels->SetName("labels");
-  labels->SetNumberOfTuples(vtkIdType(mesh_->tets.size()));
-  for (size_t t = 0; t < mesh_->tets.size(); ++t) {
-    const vtkIdType ids[4] = {mesh_->tets[t][0], mesh_->tets[t][1], mesh_->tets[t][2],
-                              mesh_->tets[t][3]};
-    cells->InsertNextCell(4, ids);
-    labels->SetValue(vtkIdType(t), t < mesh_->tetLabels.size() ? mesh_->tetLabels[t] : 0);
-  }
-  grid_->Initialize();
-  grid_->SetPoints(pts);
-  grid_->SetCells(VTK_TETRA, cells);
-  grid_->GetCellData()->AddArray(labels);
+  femesher::meshToVtkGrid(*mesh_, grid_);  // LPS, cell array "labels"
   updateMeshColors();
   updateClipPlane();
   {  // frame the mesh (same viewing direction)

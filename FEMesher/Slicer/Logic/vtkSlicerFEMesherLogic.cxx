@@ -17,25 +17,22 @@
 #include <vtkMRMLSegmentationNode.h>
 #include <vtkMRMLTransformNode.h>
 
+// FEMesher includes
+#include <femesher/io/VtkConversion.h>
+
 // VTK includes
 #include <vtkAssignAttribute.h>
-#include <vtkCellArray.h>
-#include <vtkCellData.h>
-#include <vtkImageData.h>
 #include <vtkIntArray.h>
 #include <vtkMatrix4x4.h>
 #include <vtkNew.h>
 #include <vtkObjectFactory.h>
-#include <vtkPointData.h>
-#include <vtkPoints.h>
 #include <vtkStringArray.h>
 #include <vtkUnstructuredGrid.h>
 
 // STD includes
 #include <algorithm>
 #include <cassert>
-#include <cmath>
-#include <set>
+#include <utility>
 
 //----------------------------------------------------------------------------
 vtkStandardNewMacro(vtkSlicerFEMesherLogic);
@@ -100,76 +97,16 @@ std::string vtkSlicerFEMesherLogic::LabelVolumeFromNode(vtkMRMLNode* node, femes
 
 //---------------------------------------------------------------------------
 std::string vtkSlicerFEMesherLogic::LabelVolumeFromImage(vtkImageData* image, vtkMatrix4x4* ijkToRas,
+                                                         const std::string& name,
                                                          femesher::LabelVolume& out)
 {
-  if (!image || !image->GetPointData() || !image->GetPointData()->GetScalars())
+  femesher::Result<femesher::LabelVolume> volume =
+    femesher::labelVolumeFromVtkImage(image, ijkToRas, femesher::VtkFrame::RAS, name);
+  if (!volume)
   {
-    return "The label map has no image data.";
+    return volume.status().message();
   }
-  vtkDataArray* scalars = image->GetPointData()->GetScalars();
-  if (scalars->GetNumberOfComponents() != 1)
-  {
-    return "The label map has several components per voxel; one label per voxel is needed.";
-  }
-  int extent[6];
-  image->GetExtent(extent);
-  out = femesher::LabelVolume();
-  for (int a = 0; a < 3; ++a)
-  {
-    out.dims[a] = extent[2 * a + 1] - extent[2 * a] + 1;
-  }
-  // IJK -> LPS = diag(-1, -1, 1) * IJK -> RAS.
-  for (int c = 0; c < 3; ++c)
-  {
-    double column[3];
-    for (int r = 0; r < 3; ++r)
-    {
-      column[r] = ijkToRas->GetElement(r, c) * (r < 2 ? -1.0 : 1.0);
-    }
-    const double norm = std::sqrt(column[0] * column[0] + column[1] * column[1] + column[2] * column[2]);
-    if (norm <= 0)
-    {
-      return "The label map's IJK to RAS matrix is singular.";
-    }
-    out.spacing[c] = norm;
-    for (int r = 0; r < 3; ++r)
-    {
-      out.direction[3 * r + c] = column[r] / norm;
-    }
-  }
-  // Origin: the centre of the first voxel of the extent.
-  const double ijk[4] = {double(extent[0]), double(extent[2]), double(extent[4]), 1.0};
-  double ras[4];
-  ijkToRas->MultiplyPoint(ijk, ras);
-  out.origin = {{-ras[0], -ras[1], ras[2]}};
-  const vtkIdType n = scalars->GetNumberOfTuples();
-  out.labels.resize(size_t(n));
-  std::set<int32_t> present;
-  for (vtkIdType i = 0; i < n; ++i)
-  {
-    const double v = scalars->GetTuple1(i);
-    if (v != std::floor(v) || std::abs(v) > 2147483647.0)
-    {
-      return "The volume holds non-integer values: it is not a label map.";
-    }
-    out.labels[size_t(i)] = int32_t(v);
-    if (v != 0)
-    {
-      present.insert(int32_t(v));
-    }
-  }
-  for (int32_t id : present)
-  {
-    femesher::Material m;
-    m.id = id;
-    m.name = "label " + std::to_string(id);
-    m.color = femesher::defaultLabelColor(id);
-    out.materials.push_back(m);
-  }
-  if (present.empty())
-  {
-    return "The label map is empty (only background).";
-  }
+  out = std::move(volume).value();
   return std::string();
 }
 
@@ -193,10 +130,11 @@ std::string vtkSlicerFEMesherLogic::LabelVolumeFromLabelMapNode(vtkMRMLLabelMapV
     parent->GetMatrixTransformToWorld(toWorld);
     vtkMatrix4x4::Multiply4x4(toWorld, ijkToRas, ijkToRas);
   }
-  std::string error = LabelVolumeFromImage(node->GetImageData(), ijkToRas, out);
+  const std::string error = LabelVolumeFromImage(
+    node->GetImageData(), ijkToRas, node->GetName() ? node->GetName() : "label map", out);
   if (!error.empty())
   {
-    return std::string(node->GetName() ? node->GetName() : "label map") + ": " + error;
+    return error;
   }
   if (vtkMRMLColorNode* colors = node->GetDisplayNode() ? node->GetDisplayNode()->GetColorNode() : nullptr)
   {
@@ -248,12 +186,13 @@ std::string vtkSlicerFEMesherLogic::LabelVolumeFromSegmentationNode(vtkMRMLSegme
   {
     vtkNew<vtkMatrix4x4> ijkToRas;
     labelmap->GetIJKToRASMatrix(ijkToRas);
-    error = LabelVolumeFromImage(labelmap->GetImageData(), ijkToRas, out);
+    error = LabelVolumeFromImage(
+      labelmap->GetImageData(), ijkToRas, node->GetName() ? node->GetName() : "segmentation", out);
   }
   this->GetMRMLScene()->RemoveNode(labelmap);
   if (!error.empty())
   {
-    return std::string(node->GetName() ? node->GetName() : "segmentation") + ": " + error;
+    return error;
   }
   for (femesher::Material& m : out.materials)
   {
@@ -274,34 +213,6 @@ std::string vtkSlicerFEMesherLogic::LabelVolumeFromSegmentationNode(vtkMRMLSegme
 }
 
 //---------------------------------------------------------------------------
-void vtkSlicerFEMesherLogic::MeshToUnstructuredGrid(const femesher::TetMesh& mesh, vtkUnstructuredGrid* grid)
-{
-  vtkNew<vtkPoints> points;
-  points->SetDataTypeToDouble();
-  points->SetNumberOfPoints(vtkIdType(mesh.points.size()));
-  for (size_t i = 0; i < mesh.points.size(); ++i)
-  {
-    // LPS -> RAS. A rotation by 180 degrees about S: tets keep their orientation.
-    points->SetPoint(vtkIdType(i), -mesh.points[i][0], -mesh.points[i][1], mesh.points[i][2]);
-  }
-  vtkNew<vtkCellArray> cells;
-  vtkNew<vtkIntArray> labels;
-  labels->SetName("labels");
-  labels->SetNumberOfTuples(vtkIdType(mesh.tets.size()));
-  for (size_t t = 0; t < mesh.tets.size(); ++t)
-  {
-    const vtkIdType ids[4] = {mesh.tets[t][0], mesh.tets[t][1], mesh.tets[t][2], mesh.tets[t][3]};
-    cells->InsertNextCell(4, ids);
-    labels->SetValue(vtkIdType(t), mesh.tetLabels[t]);
-  }
-  grid->Initialize();
-  grid->SetPoints(points);
-  grid->SetCells(VTK_TETRA, cells);
-  grid->GetCellData()->AddArray(labels);
-  grid->GetCellData()->SetActiveScalars("labels");
-}
-
-//---------------------------------------------------------------------------
 vtkMRMLModelNode* vtkSlicerFEMesherLogic::UpdateModelNodeFromMesh(const femesher::TetMesh& mesh,
                                                                   vtkMRMLModelNode* model)
 {
@@ -315,8 +226,11 @@ vtkMRMLModelNode* vtkSlicerFEMesherLogic::UpdateModelNodeFromMesh(const femesher
   {
     model = vtkMRMLModelNode::SafeDownCast(scene->AddNewNodeByClass("vtkMRMLModelNode", "FEMesh"));
   }
+  // LPS -> RAS, cell array "labels" (femesher/io/VtkConversion.h).
+  femesher::VtkGridOptions gridOptions;
+  gridOptions.frame = femesher::VtkFrame::RAS;
   vtkNew<vtkUnstructuredGrid> grid;
-  MeshToUnstructuredGrid(mesh, grid);
+  femesher::meshToVtkGrid(mesh, grid, gridOptions);
   model->SetAndObserveMesh(grid);
   if (!model->GetDisplayNode())
   {

@@ -29,7 +29,6 @@ class vtkMRMLLabelMapVolumeNode;
 class vtkMRMLModelNode;
 class vtkMRMLNode;
 class vtkMRMLSegmentationNode;
-class vtkUnstructuredGrid;
 
 class VTK_SLICER_FEMESHER_MODULE_LOGIC_EXPORT vtkSlicerFEMesherLogic :
   public vtkSlicerModuleLogic
@@ -51,11 +50,11 @@ public:
   std::string LabelVolumeFromSegmentationNode(vtkMRMLSegmentationNode* node,
                                               femesher::LabelVolume& out);
 
-  /// Image + IJK->RAS matrix -> LPS label volume (RAS -> LPS negates the first two axes).
+  /// Image + IJK->RAS matrix -> LPS label volume, converted and checked by FEMesherLogic
+  /// (femesher::labelVolumeFromVtkImage: the same label-map checks as for files). `name` (the
+  /// node's) starts every message.
   static std::string LabelVolumeFromImage(vtkImageData* image, vtkMatrix4x4* ijkToRas,
-                                          femesher::LabelVolume& out);
-  /// LPS tet mesh -> RAS unstructured grid with the cell array "labels".
-  static void MeshToUnstructuredGrid(const femesher::TetMesh& mesh, vtkUnstructuredGrid* grid);
+                                          const std::string& name, femesher::LabelVolume& out);
 
   /// Put the mesh into `model` (created in the scene when null), coloured by material.
   vtkMRMLModelNode* UpdateModelNodeFromMesh(const femesher::TetMesh& mesh, vtkMRMLModelNode* model);

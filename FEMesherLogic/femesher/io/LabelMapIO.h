@@ -15,10 +15,13 @@
 ///  - EmptyLabelMap: only background (0).
 ///  - TooManyLabels: more than 65,535 distinct labels.
 ///  - OverlappingSegments: a .seg.nrrd whose segments overlap (several layers).
-/// Every message names the file, the problem and what to do about it.
+/// Every message names the file, the problem and what to do about it. The checks of the geometry
+/// and of the voxel values are those of LabelValidation.h, shared with the other label-map sources.
 
 #include <femesher/Status.h>
 #include <femesher/Types.h>
+#include <femesher/io/LabelMapSummary.h>  // summarizeLabelMap (femesher info)
+#include <femesher/io/LabelValidation.h>  // the checks readLabelMap applies
 
 #include <string>
 #include <vector>
@@ -49,22 +52,5 @@ Status writeLabelMap(const LabelVolume& volume, const std::string& path);
 /// sizing field in mm. `values` has geometry.voxelCount() entries, x fastest.
 Status writeScalarVolume(const LabelVolume& geometry, const std::vector<float>& values,
                          const std::string& path);
-
-/// Per-label statistics for `femesher info` and the panel's material table.
-struct LabelStatistics {
-  int32_t id = 0;
-  std::string name;
-  size_t voxels = 0;
-  double volumeMm3 = 0;
-  int components = 0;               ///< 6-connected components
-  std::array<int, 3> bboxMin{{0, 0, 0}}, bboxMax{{0, 0, 0}};  ///< voxel index bounding box
-};
-struct LabelMapSummary {
-  std::vector<LabelStatistics> labels;  ///< background (0) first when present
-  std::vector<std::pair<int32_t, int32_t>> touchingPairs;  ///< 6-neighbour, a < b
-  size_t tripleCells = 0;     ///< 2x2x2 cells holding >= 3 distinct labels
-  size_t quadrupleCells = 0;  ///< 2x2x2 cells holding >= 4 distinct labels
-};
-LabelMapSummary summarizeLabelMap(const LabelVolume& volume);
 
 }  // namespace femesher

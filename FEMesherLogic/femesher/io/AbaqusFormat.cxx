@@ -1,0 +1,119 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// Abaqus / CalculiX input (.inp): model data only, C3D4 per material, surfaces, materials.
+#include <femesher/Version.h>
+#include <femesher/io/MeshFormats.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <cstring>
+#include <set>
+
+namespace femesher::meshio {
+
+namespace {
+
+/// A real number in at most 20 characters (CalculiX reads each field of a data line as at most
+/// 20 characters): the shortest text that reads back exactly when it fits (0.34, not
+/// 0.34000000000000002), otherwise as many digits as fit.
+std::string inpReal(double x) {
+  char buf[64];
+  for (int digits = 15; digits <= 17; ++digits) {
+    std::snprintf(buf, sizeof buf, "%.*g", digits, x);
+    if (std::strtod(buf, nullptr) == x && std::strlen(buf) <= 20) return buf;
+  }
+  for (int digits = 17; digits >= 6; --digits) {
+    std::snprintf(buf, sizeof buf, "%.*g", digits, x);
+    if (std::strlen(buf) <= 20) break;
+  }
+  return buf;
+}
+
+/// Abaqus C3D4 face numbering (1-based): S1 = 1-2-3, S2 = 1-4-2, S3 = 2-4-3, S4 = 3-4-1.
+int abaqusFace(const std::array<int32_t, 4>& tet, const std::array<int32_t, 3>& tri) {
+  static const int F[4][3] = {{0, 1, 2}, {0, 3, 1}, {1, 3, 2}, {2, 3, 0}};
+  std::array<int32_t, 3> s = tri;
+  std::sort(s.begin(), s.end());
+  for (int f = 0; f < 4; ++f) {
+    std::array<int32_t, 3> q{tet[F[f][0]], tet[F[f][1]], tet[F[f][2]]};
+    std::sort(q.begin(), q.end());
+    if (q == s) return f + 1;
+  }
+  return 0;
+}
+
+/// Writes `ids` (already 1-based) comma separated, at most 16 per data line.
+void writeIdLines(std::FILE* f, const std::vector<size_t>& ids) {
+  for (size_t i = 0; i < ids.size(); ++i) {
+    const bool last = i + 1 == ids.size() || (i + 1) % 16 == 0;
+    std::fprintf(f, "%zu%s", ids[i], last ? "\n" : ", ");
+  }
+}
+
+}  // namespace
+
+Status writeInp(const TetMesh& m, const std::string& path, const ExportOptions& o) {
+  const auto byLabel = tetsByLabel(m);
+  const auto tris = extractInterfaces(m);
+  const auto patches = patchesOf(tris);
+  const auto elset = abaqusElsetNames(m);
+  return writeText(path, [&](std::FILE* f) {
+    // CalculiX reads at most 132 characters per line.
+    std::string heading = "FEMesher " FEMESHER_VERSION " multi-material tet mesh, LPS mm";
+    if (!o.provenance.empty()) heading += ", " + oneLine(o.provenance);
+    std::fprintf(f, "*HEADING\n%s\n", heading.substr(0, 130).c_str());
+    std::fprintf(f,
+                 "** Units: mm, N, MPa, tonne/mm^3. Model data only (no *STEP): *INCLUDE this file\n"
+                 "** in an analysis deck and add boundary conditions, loads and steps there.\n"
+                 "** Element sets (one per material), *SOLID SECTION and *MATERIAL per material:\n");
+    for (const auto& [l, name] : elset) {
+      std::fprintf(f, "**   label %d -> ELSET=%s\n", l, name.c_str());
+      std::fprintf(f, "**     name '%s'\n", oneLine(materialName(m, l)).substr(0, 100).c_str());
+    }
+    std::fprintf(f,
+                 "** NSET=BOUNDARY: nodes on the outer boundary. Element-based surfaces:\n"
+                 "**   IF_<a>_<b> interface between labels a < b (faces of a's elements),\n"
+                 "**   OUTER_<a> outer boundary of label a (negative labels written N<|a|>).\n");
+    std::fprintf(f, "*NODE, NSET=ALLNODES\n");
+    for (size_t i = 0; i < m.points.size(); ++i)
+      std::fprintf(f, "%zu, %s, %s, %s\n", i + 1, inpReal(m.points[i][0]).c_str(),
+                   inpReal(m.points[i][1]).c_str(), inpReal(m.points[i][2]).c_str());
+    // Elements grouped by material; element id = 1-based index in the mesh (as in the .vtu).
+    for (const auto& [l, tets] : byLabel) {
+      std::fprintf(f, "*ELEMENT, TYPE=C3D4, ELSET=%s\n", elset.at(l).c_str());
+      for (size_t t : tets)
+        std::fprintf(f, "%zu, %d, %d, %d, %d\n", t + 1, m.tets[t][0] + 1, m.tets[t][1] + 1,
+                     m.tets[t][2] + 1, m.tets[t][3] + 1);
+    }
+    // Outer boundary nodes.
+    std::set<int32_t> boundary;
+    for (const auto& t : tris)
+      if (t.labelB == kExteriorLabel) boundary.insert(t.v.begin(), t.v.end());
+    std::vector<size_t> ids;
+    for (int32_t v : boundary) ids.push_back(size_t(v) + 1);
+    std::fprintf(f, "*NSET, NSET=BOUNDARY\n");
+    writeIdLines(f, ids);
+    // Element-based surfaces, faces seen from labelA's elements.
+    for (const auto& [key, list] : patches) {
+      const std::string name = key.second == kExteriorLabel
+                                   ? "OUTER_" + labelToken(key.first)
+                                   : "IF_" + labelToken(key.first) + "_" + labelToken(key.second);
+      std::fprintf(f, "*SURFACE, NAME=%s, TYPE=ELEMENT\n", name.c_str());
+      for (size_t i : list) {
+        const auto& t = tris[i];
+        const int face = abaqusFace(m.tets[size_t(t.tetA)], t.v);
+        if (face == 0)
+          throw Error(ErrorCode::Internal, "Interface triangle is not a face of its tet (" + path + ")");
+        std::fprintf(f, "%d, S%d\n", t.tetA + 1, face);
+      }
+    }
+    for (const auto& [l, name] : elset) {
+      const ElasticProperties& p = propsFor(o, l);
+      std::fprintf(f, "*MATERIAL, NAME=MAT_%s\n*ELASTIC\n%s, %s\n*DENSITY\n%s\n", name.c_str(),
+                   inpReal(p.youngsModulus).c_str(), inpReal(p.poissonRatio).c_str(),
+                   inpReal(p.density).c_str());
+      std::fprintf(f, "*SOLID SECTION, ELSET=%s, MATERIAL=MAT_%s\n", name.c_str(), name.c_str());
+    }
+  });
+}
+
+}  // namespace femesher::meshio

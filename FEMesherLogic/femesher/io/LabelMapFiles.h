@@ -1,0 +1,40 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+/// \file LabelMapFiles.h
+/// Private to the label-map .cxx files of io/ (not part of the public API): the helpers reading
+/// and writing label-map files share, and the checks of a file's header against its data that
+/// must run before ITK reads it (ITK silently zero-fills data that is missing).
+
+#include <femesher/Status.h>
+
+#include <string>
+
+namespace itk {
+class ExceptionObject;
+}
+
+namespace femesher::labelio {
+
+/// `s` without leading and trailing blanks (spaces, tabs, CR, LF).
+std::string trim(const std::string& s);
+
+/// "'<path>'", how every label-map message names its file.
+std::string quoted(const std::string& path);
+
+/// ITK's description without its "ITK ERROR: NrrdImageIO(0x...): " prefix, on one line.
+std::string itkMessage(const itk::ExceptionObject& e);
+
+/// CorruptFile "'<path>' is damaged: <what>. Re-export the file ...".
+Status corrupt(const std::string& path, const std::string& what);
+
+/// A MetaImage (.mha/.mhd) header that lies about its data: a CompressedDataSize that differs
+/// from the bytes there, raw data shorter than the voxels described, a missing data file.
+/// CorruptFile then; OK when the data is complete or the header too unusual to check (ITK
+/// reports what it cannot read itself).
+Status checkMetaImage(const std::string& path);
+
+/// A NIfTI file (.nii, .nii.gz) whose data is shorter than its header says, or whose gzip stream
+/// is cut or damaged: CorruptFile. OK for complete files and for what is not NIfTI.
+Status checkNifti(const std::string& path);
+
+}  // namespace femesher::labelio

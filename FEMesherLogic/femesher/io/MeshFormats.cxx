@@ -1,0 +1,123 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// Helpers shared by the mesh formats (declared in MeshFormats.h).
+#include <femesher/io/MeshFormats.h>
+
+#include <cctype>
+#include <cmath>
+#include <cstring>
+#include <set>
+
+namespace femesher::meshio {
+
+namespace {
+
+/// Upper-case A-Z0-9_ text (Abaqus/CalculiX identifiers), no repeated or trailing underscores.
+std::string safeName(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    const unsigned char u = static_cast<unsigned char>(c);
+    const char x = (u < 128 && std::isalnum(u)) ? char(std::toupper(u)) : '_';
+    if (x == '_' && (o.empty() || o.back() == '_')) continue;
+    o += x;
+  }
+  while (!o.empty() && o.back() == '_') o.pop_back();
+  return o;
+}
+
+}  // namespace
+
+const ElasticProperties& propsFor(const ExportOptions& o, int32_t label) {
+  auto it = o.materialProperties.find(label);
+  return it != o.materialProperties.end() ? it->second : o.defaultMaterial;
+}
+
+std::string materialName(const TetMesh& m, int32_t label) {
+  const Material* mat = findMaterial(m.materials, label);
+  return mat && !mat->name.empty() ? mat->name : "label " + std::to_string(label);
+}
+
+std::string oneLine(const std::string& s, const char* drop) {
+  std::string o;
+  for (char c : s) {
+    if (std::strchr(drop, c) && c != '\0') continue;
+    o += static_cast<unsigned char>(c) < 0x20 ? ' ' : c;
+  }
+  return o;
+}
+
+std::string labelToken(int32_t l) {
+  return l < 0 ? "N" + std::to_string(-int64_t(l)) : std::to_string(l);
+}
+
+std::vector<int32_t> meshLabels(const TetMesh& m) {
+  std::set<int32_t> s(m.tetLabels.begin(), m.tetLabels.end());
+  return {s.begin(), s.end()};
+}
+
+std::map<int32_t, std::vector<size_t>> tetsByLabel(const TetMesh& m) {
+  std::map<int32_t, std::vector<size_t>> by;
+  for (size_t t = 0; t < m.tets.size(); ++t) by[m.tetLabels[t]].push_back(t);
+  return by;
+}
+
+std::map<PatchKey, std::vector<size_t>> patchesOf(const std::vector<InterfaceTriangle>& tris) {
+  std::map<PatchKey, std::vector<size_t>> patches;
+  for (size_t i = 0; i < tris.size(); ++i) patches[{tris[i].labelA, tris[i].labelB}].push_back(i);
+  return patches;
+}
+
+std::string patchName(const PatchKey& k) {
+  if (k.second == kExteriorLabel) return "boundary_" + std::to_string(k.first);
+  return "interface_" + std::to_string(k.first) + "_" + std::to_string(k.second);
+}
+
+Status ioError(const std::string& path) {
+  return {ErrorCode::WriteFailed,
+          "Cannot write '" + path + "': the disk may be full or the folder not writable."};
+}
+
+std::map<int32_t, std::string> abaqusElsetNames(const TetMesh& m) {
+  std::map<int32_t, std::string> elset;
+  std::set<std::string> used;
+  for (int32_t l : meshLabels(m)) {
+    std::string base = "M" + labelToken(l);
+    const std::string name = safeName(materialName(m, l));
+    if (!name.empty()) base += "_" + name;
+    if (base.size() > 40) base.resize(40);
+    while (!base.empty() && base.back() == '_') base.pop_back();
+    std::string n = base;
+    for (int k = 2; used.count(n); ++k) n = base + "_" + std::to_string(k);
+    used.insert(n);
+    elset[l] = n;
+  }
+  return elset;
+}
+
+Result<TetMesh> fail(ErrorCode code, const std::string& path, const std::string& what) {
+  return Result<TetMesh>(code, "Cannot read mesh '" + path + "': " + what);
+}
+
+Result<TetMesh> finishRead(TetMesh m, const std::string& path, const std::map<int32_t, std::string>& names,
+                           const std::map<int32_t, std::array<double, 3>>& colors) {
+  if (m.tets.empty()) return fail(ErrorCode::CorruptFile, path, "it holds no tetrahedra.");
+  if (m.tets.size() != m.tetLabels.size())
+    return fail(ErrorCode::CorruptFile, path, "the number of labels differs from the number of tetrahedra.");
+  for (const auto& t : m.tets)
+    for (int32_t v : t)
+      if (v < 0 || size_t(v) >= m.points.size())
+        return fail(ErrorCode::CorruptFile, path,
+                    "a tetrahedron refers to vertex " + std::to_string(int64_t(v) + 1) + " but there are " +
+                        std::to_string(m.points.size()) + " vertices.");
+  for (const auto& p : m.points)
+    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
+      return fail(ErrorCode::CorruptFile, path, "a vertex has a non-finite coordinate.");
+  for (int32_t l : meshLabels(m)) {
+    Material mat{l, "label " + std::to_string(l), defaultLabelColor(l)};
+    if (auto it = names.find(l); it != names.end() && !it->second.empty()) mat.name = it->second;
+    if (auto it = colors.find(l); it != colors.end()) mat.color = it->second;
+    m.materials.push_back(mat);
+  }
+  return m;
+}
+
+}  // namespace femesher::meshio
