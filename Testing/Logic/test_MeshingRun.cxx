@@ -1,0 +1,194 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// The code that connects the stages (MeshingRun): stage order and skipping, what `femesher sizing`
+// writes against what the mesh run used, material exclusion end to end.
+#include "MeshInvariants.h"
+
+#include <femesher/MeshingRun.h>
+#include <femesher/Phantom.h>
+#include <femesher/Pipeline.h>
+#include <femesher/StageTable.h>
+#include <femesher/io/LabelMapIO.h>
+
+#include <itkImage.h>
+#include <itkImageFileReader.h>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <map>
+#include <string>
+
+using namespace femesher;
+using namespace femesher::testing;
+
+namespace {
+
+/// The phantom in an oblique, left-handed frame with a far origin: every frame conversion shows.
+LabelVolume obliquePhantom() {
+  LabelVolume v = makePhantom();
+  const double c = std::cos(0.4), s = std::sin(0.4);
+  v.direction = {c, -s, 0, s, c, 0, 0, 0, -1};
+  v.origin = {-31.5, 12.25, 80.0};
+  return v;
+}
+
+std::map<int32_t, double> materialVolumes(const TetMesh& m) {
+  std::map<int32_t, double> vol;
+  for (size_t t = 0; t < m.tets.size(); ++t) {
+    const auto& p0 = m.points[size_t(m.tets[t][0])];
+    std::array<Vec3, 3> e;
+    for (int k = 0; k < 3; ++k)
+      for (int a = 0; a < 3; ++a) e[k][a] = m.points[size_t(m.tets[t][k + 1])][a] - p0[a];
+    const double det = e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) -
+                       e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0]) +
+                       e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0]);
+    vol[m.tetLabels[t]] += std::abs(det) / 6.0;
+  }
+  return vol;
+}
+
+}  // namespace
+
+TEST(MeshingRun, StagesRunInTableOrderAndStopWhereAsked) {
+  const LabelVolume v = makePhantom();
+  RunContext ctx;
+  MeshingParameters p;
+  MeshingRun run(v, p, ctx);
+  run.runThrough(StageId::SizingField);
+  const auto& s = run.state();
+  ASSERT_EQ(s.timings.size(), 4u);
+  for (size_t i = 0; i < 4; ++i) EXPECT_EQ(s.timings[i].name, stageTable()[i].key);
+  ASSERT_TRUE(s.sizingField);
+  EXPECT_GT(s.medialVoxels, 0u);
+  EXPECT_TRUE(s.samples.all.empty());  // SurfaceSampling has not run
+  // The sizing function reads the field in the working grid's own frame.
+  const Vec3 centre = s.grid.localToCanonical({s.grid.dims[0] / 2.0, s.grid.dims[1] / 2.0,
+                                               s.grid.dims[2] / 2.0});
+  EXPECT_FLOAT_EQ(float(s.sizing(centre)), s.sizingField->at(s.grid.canonicalToGridMm(centre)));
+  run.runThrough(StageId::Junctions);
+  EXPECT_EQ(run.state().timings.size(), 6u);
+  EXPECT_FALSE(run.state().samples.selected.empty());
+
+  // Uniform sizing skips the medial axis and the sizing field; the size is the edge length.
+  MeshingParameters u;
+  u.sizing.mode = SizingMode::Uniform;
+  RunContext ctx2;
+  MeshingRun uniform(v, u, ctx2);
+  uniform.runThrough(StageId::SurfaceSampling);
+  ASSERT_EQ(uniform.state().timings.size(), 3u);
+  EXPECT_EQ(uniform.state().timings[2].name, "SurfaceSampling");
+  EXPECT_FALSE(uniform.state().sizingField);
+  EXPECT_DOUBLE_EQ(uniform.state().sizing({1, 2, 3}), uniform.state().edgeLength);
+  EXPECT_DOUBLE_EQ(uniform.state().edgeLength, uniformEdgeLength(v, u.sizing));
+}
+
+TEST(MeshingRun, InvalidParametersAreRefusedBeforeAnyStage) {
+  const LabelVolume v = makePhantom();
+  RunContext ctx;
+  MeshingParameters p;
+  p.volume.maxRadiusEdgeRatio = 0.5;
+  try {
+    MeshingRun run(v, p, ctx);
+    FAIL() << "accepted max_radius_edge_ratio 0.5";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.status().code(), ErrorCode::InvalidArgument);
+  }
+  auto r = runPipeline(v, p, ctx);
+  EXPECT_EQ(r.status().code(), ErrorCode::InvalidArgument);
+}
+
+TEST(MeshingRun, CliSizingWritesTheFieldTheMeshRunUses) {
+  const std::string dir = std::string(FEMESHER_TEST_TMP_DIR) + "/meshing_run";
+  std::filesystem::create_directories(dir);
+  const std::string in = dir + "/oblique_phantom.nrrd", out = dir + "/sizing.nrrd";
+  ASSERT_TRUE(writeLabelMap(obliquePhantom(), in).isOk());
+  auto volume = readLabelMap(in);
+  ASSERT_TRUE(volume.isOk());
+  MeshingParameters p;
+  p.sizing.scale = 0.9;  // a non-default value must reach both
+  p.run.computeFidelity = false;
+  RunContext ctx;
+  auto mesh = runPipeline(volume.value(), p, ctx);
+  ASSERT_TRUE(mesh.isOk()) << mesh.status().message();
+  ASSERT_TRUE(mesh->sizingField);
+
+  std::filesystem::remove(out);
+  const std::string cmd = std::string(FEMESHER_CLI) + " sizing " + in + " -o " + out +
+                          " --set sizing_scale=0.9 2>/dev/null";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  using Image = itk::Image<float, 3>;
+  auto reader = itk::ImageFileReader<Image>::New();
+  reader->SetFileName(out);
+  reader->Update();
+  const Image* img = reader->GetOutput();
+  const auto size = img->GetLargestPossibleRegion().GetSize();
+  const LabelVolume& g = mesh->sizingGeometry;
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_EQ(int(size[a]), g.dims[a]);
+    EXPECT_NEAR(img->GetSpacing()[a], g.spacing[a], 1e-9);
+    EXPECT_NEAR(img->GetOrigin()[a], g.origin[a], 1e-6);
+    for (int b = 0; b < 3; ++b)
+      EXPECT_NEAR(img->GetDirection()[a][b], g.direction[size_t(3 * a + b)], 1e-9);
+  }
+  // The working grid's voxel (0,0,0) sits where the input's voxel `offset` is.
+  ASSERT_EQ(mesh->sizingField->h.size(), size_t(size[0] * size[1] * size[2]));
+  const float* values = img->GetBufferPointer();
+  size_t differing = 0;
+  for (size_t i = 0; i < mesh->sizingField->h.size(); ++i)
+    differing += values[i] != mesh->sizingField->h[i];
+  EXPECT_EQ(differing, 0u) << "femesher sizing wrote another field than the mesh run used";
+}
+
+TEST(MeshingRun, ExcludedMaterialsMergeOrLeaveACavity) {
+  const LabelVolume v = makePhantom();
+  MeshingParameters base;
+  base.run.computeFidelity = false;
+  RunContext c0;
+  auto all = runPipeline(v, base, c0);
+  ASSERT_TRUE(all.isOk()) << all.status().message();
+  const auto v0 = materialVolumes(all->mesh);
+  ASSERT_TRUE(v0.count(3));
+
+  // Marrow (3) merged: gone from the mesh, its volume joins its neighbours, total kept.
+  MeshingParameters merge = base;
+  ASSERT_TRUE(setParameter(merge, "material.3.exclude", "merge").isOk());
+  RunContext c1;
+  auto merged = runPipeline(v, merge, c1);
+  ASSERT_TRUE(merged.isOk()) << merged.status().message();
+  const auto v1 = materialVolumes(merged->mesh);
+  EXPECT_FALSE(v1.count(3));
+  double t0 = 0, t1 = 0;
+  for (const auto& [l, x] : v0) t0 += x;
+  for (const auto& [l, x] : v1) t1 += x;
+  EXPECT_NEAR(t1, t0, 0.01 * t0);
+  EXPECT_EQ(merged->excludedLabels, std::vector<int32_t>{3});
+  bool named = false;
+  for (const auto& w : merged->warnings)
+    named |= w.find("merged into its neighbours") != std::string::npos &&
+             w.find("label 2") != std::string::npos;
+  EXPECT_TRUE(named) << "the warning must name the material the marrow joined";
+  expectConformal(merged->mesh);
+
+  // Marrow as background: a cavity of about its volume.
+  MeshingParameters cut = base;
+  ASSERT_TRUE(setParameter(cut, "material.3.exclude", "background").isOk());
+  RunContext c2;
+  auto cavity = runPipeline(v, cut, c2);
+  ASSERT_TRUE(cavity.isOk()) << cavity.status().message();
+  const auto v2 = materialVolumes(cavity->mesh);
+  EXPECT_FALSE(v2.count(3));
+  double t2 = 0;
+  for (const auto& [l, x] : v2) t2 += x;
+  EXPECT_NEAR(t0 - t2, v0.at(3), 0.05 * v0.at(3));
+
+  // Everything excluded: a clear error, not an empty mesh.
+  MeshingParameters none = base;
+  for (int l = 1; l <= 5; ++l)
+    ASSERT_TRUE(setParameter(none, "material." + std::to_string(l) + ".exclude", "background").isOk());
+  RunContext c3;
+  auto empty = runPipeline(v, none, c3);
+  EXPECT_EQ(empty.status().code(), ErrorCode::EmptyLabelMap);
+  EXPECT_NE(empty.status().message().find("excluded"), std::string::npos);
+}
