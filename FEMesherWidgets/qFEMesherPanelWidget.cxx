@@ -85,7 +85,24 @@ qFEMesherPanelWidget::qFEMesherPanelWidget(QWidget* parent) : QWidget(parent) {
   runner_ = new qFEMesherRunner(this);
   auto* layout = new QVBoxLayout(this);
   layout->setContentsMargins(6, 6, 6, 6);
+  buildInputSection(layout);
+  buildMaterialSection(layout);
+  buildParameterSection(layout);
+  buildRunSection(layout);
+  buildExportSection(layout);
+  connect(runner_, &qFEMesherRunner::progressChanged, this, &qFEMesherPanelWidget::onProgress);
+  connect(runner_, &qFEMesherRunner::logMessage, this, &qFEMesherPanelWidget::onLog);
+  connect(runner_, &qFEMesherRunner::previewAvailable, this,
+          &qFEMesherPanelWidget::previewAvailable);
+  connect(runner_, &qFEMesherRunner::succeeded, this, &qFEMesherPanelWidget::onSucceeded);
+  connect(runner_, &qFEMesherRunner::failed, this, &qFEMesherPanelWidget::onFailed);
+  connect(runner_, &qFEMesherRunner::canceled, this, &qFEMesherPanelWidget::onCanceled);
 
+  setParameters(femesher::MeshingParameters{});
+  updateButtons();
+}
+
+void qFEMesherPanelWidget::buildInputSection(QVBoxLayout* layout) {
   // --- input --------------------------------------------------------------------------------------
   fileRow_ = new QWidget(this);
   auto* fileLayout = new QHBoxLayout(fileRow_);
@@ -104,6 +121,9 @@ qFEMesherPanelWidget::qFEMesherPanelWidget(QWidget* parent) : QWidget(parent) {
   volumeInfo_->setWordWrap(true);
   layout->addWidget(volumeInfo_);
 
+}
+
+void qFEMesherPanelWidget::buildMaterialSection(QVBoxLayout* layout) {
   // --- materials ----------------------------------------------------------------------------------
   auto* matBox = new QGroupBox(tr("Materials"), this);
   auto* matLayout = new QVBoxLayout(matBox);
@@ -140,6 +160,43 @@ qFEMesherPanelWidget::qFEMesherPanelWidget(QWidget* parent) : QWidget(parent) {
   matLayout->addWidget(table_);
   layout->addWidget(matBox);
 
+}
+
+/// An editor for one parameter descriptor: check box, choice, text (tiny values) or spin box.
+QWidget* qFEMesherPanelWidget::makeParameterEditor(const femesher::ParameterDescriptor& d,
+                                                   QWidget* owner) {
+  if (d.type == "bool") {
+    auto* cb = new QCheckBox(owner);
+    connect(cb, &QCheckBox::toggled, this, &qFEMesherPanelWidget::onParameterEdited);
+    return cb;
+  }
+  if (d.type == "choice") {
+    auto* combo = new QComboBox(owner);
+    for (const auto& c : d.choices) combo->addItem(QString::fromStdString(c));
+    connect(combo, QOverload<int>::of(&QComboBox::currentIndexChanged), this,
+            &qFEMesherPanelWidget::onParameterEdited);
+    return combo;
+  }
+  if (d.defaultValue.find('e') != std::string::npos) {
+    // Tiny values (density 1e-9): plain text with a validator.
+    auto* edit = new QLineEdit(owner);
+    edit->setValidator(new QDoubleValidator(d.minimum, d.maximum, 15, edit));
+    connect(edit, &QLineEdit::editingFinished, this, &qFEMesherPanelWidget::onParameterEdited);
+    return edit;
+  }
+  auto* spin = new QDoubleSpinBox(owner);
+  spin->setDecimals(d.type == "int" ? 0 : (d.unit == "mm" || d.unit == "voxels" ? 2 : 3));
+  spin->setRange(d.minimum, std::min(d.maximum, d.type == "int" ? 1e12 : 1e9));
+  spin->setSingleStep(d.type == "int" ? 1 : (d.maximum <= 20 ? 0.1 : 0.5));
+  spin->setSuffix(unitSuffix(d.unit));
+  spin->setKeyboardTracking(false);
+  if (d.key == "target_edge_length") spin->setSpecialValueText(tr("Automatic"));
+  connect(spin, QOverload<double>::of(&QDoubleSpinBox::valueChanged), this,
+          &qFEMesherPanelWidget::onParameterEdited);
+  return spin;
+}
+
+void qFEMesherPanelWidget::buildParameterSection(QVBoxLayout* layout) {
   // --- parameters ---------------------------------------------------------------------------------
   auto* paramBox = new QGroupBox(tr("Mesh size"), this);
   auto* form = new QFormLayout(paramBox);
@@ -170,37 +227,9 @@ qFEMesherPanelWidget::qFEMesherPanelWidget(QWidget* parent) : QWidget(parent) {
 
   // Editors from the descriptors: key parameters under the preset, the others in Advanced.
   for (const auto& d : femesher::parameterDescriptors()) {
-    QWidget* editor = nullptr;
     const QString key = QString::fromStdString(d.key);
     QWidget* owner = isKeyParameter(d.key) ? paramBox : advContent;
-    if (d.type == "bool") {
-      auto* cb = new QCheckBox(owner);
-      connect(cb, &QCheckBox::toggled, this, &qFEMesherPanelWidget::onParameterEdited);
-      editor = cb;
-    } else if (d.type == "choice") {
-      auto* combo = new QComboBox(owner);
-      for (const auto& c : d.choices) combo->addItem(QString::fromStdString(c));
-      connect(combo, QOverload<int>::of(&QComboBox::currentIndexChanged), this,
-              &qFEMesherPanelWidget::onParameterEdited);
-      editor = combo;
-    } else if (d.defaultValue.find('e') != std::string::npos) {
-      // Tiny values (density 1e-9): plain text with a validator.
-      auto* edit = new QLineEdit(owner);
-      edit->setValidator(new QDoubleValidator(d.minimum, d.maximum, 15, edit));
-      connect(edit, &QLineEdit::editingFinished, this, &qFEMesherPanelWidget::onParameterEdited);
-      editor = edit;
-    } else {
-      auto* spin = new QDoubleSpinBox(owner);
-      spin->setDecimals(d.type == "int" ? 0 : (d.unit == "mm" || d.unit == "voxels" ? 2 : 3));
-      spin->setRange(d.minimum, std::min(d.maximum, d.type == "int" ? 1e12 : 1e9));
-      spin->setSingleStep(d.type == "int" ? 1 : (d.maximum <= 20 ? 0.1 : 0.5));
-      spin->setSuffix(unitSuffix(d.unit));
-      spin->setKeyboardTracking(false);
-      if (d.key == "target_edge_length") spin->setSpecialValueText(tr("Automatic"));
-      connect(spin, QOverload<double>::of(&QDoubleSpinBox::valueChanged), this,
-              &qFEMesherPanelWidget::onParameterEdited);
-      editor = spin;
-    }
+    QWidget* editor = makeParameterEditor(d, owner);
     editor->setObjectName(key);
     editor->setToolTip(describe(d));
     editors_.insert(key, editor);
@@ -227,6 +256,9 @@ qFEMesherPanelWidget::qFEMesherPanelWidget(QWidget* parent) : QWidget(parent) {
   connect(saveParams_, &QPushButton::clicked, this, &qFEMesherPanelWidget::saveParametersClicked);
   connect(loadParams_, &QPushButton::clicked, this, &qFEMesherPanelWidget::loadParametersClicked);
 
+}
+
+void qFEMesherPanelWidget::buildRunSection(QVBoxLayout* layout) {
   // --- run ------------------------------------------------------------------------------------------
   auto* runRow = new QHBoxLayout;
   runButton_ = new QPushButton(tr("Run"), this);
@@ -262,6 +294,9 @@ qFEMesherPanelWidget::qFEMesherPanelWidget(QWidget* parent) : QWidget(parent) {
   layout->addWidget(warnBox);
   layout->addStretch(1);
 
+}
+
+void qFEMesherPanelWidget::buildExportSection(QVBoxLayout* layout) {
   // --- export ---------------------------------------------------------------------------------------
   auto* exportBox = new QGroupBox(tr("Export mesh"), this);
   auto* exportGrid = new QGridLayout(exportBox);
@@ -278,16 +313,6 @@ qFEMesherPanelWidget::qFEMesherPanelWidget(QWidget* parent) : QWidget(parent) {
   }
   layout->addWidget(exportBox);
 
-  connect(runner_, &qFEMesherRunner::progressChanged, this, &qFEMesherPanelWidget::onProgress);
-  connect(runner_, &qFEMesherRunner::logMessage, this, &qFEMesherPanelWidget::onLog);
-  connect(runner_, &qFEMesherRunner::previewAvailable, this,
-          &qFEMesherPanelWidget::previewAvailable);
-  connect(runner_, &qFEMesherRunner::succeeded, this, &qFEMesherPanelWidget::onSucceeded);
-  connect(runner_, &qFEMesherRunner::failed, this, &qFEMesherPanelWidget::onFailed);
-  connect(runner_, &qFEMesherRunner::canceled, this, &qFEMesherPanelWidget::onCanceled);
-
-  setParameters(femesher::MeshingParameters{});
-  updateButtons();
 }
 
 qFEMesherPanelWidget::~qFEMesherPanelWidget() = default;

@@ -32,6 +32,7 @@
 #include <memory>
 
 class QComboBox;
+class QVBoxLayout;
 class QDoubleSpinBox;
 class QGroupBox;
 class QLabel;
@@ -134,7 +135,13 @@ class qFEMesherPanelWidget : public QWidget {
   void loadParametersClicked();
 
  private:
-  void buildParameterEditors();
+  // Construction, one section of the panel each (top to bottom).
+  void buildInputSection(QVBoxLayout* layout);
+  void buildMaterialSection(QVBoxLayout* layout);
+  void buildParameterSection(QVBoxLayout* layout);
+  void buildRunSection(QVBoxLayout* layout);
+  void buildExportSection(QVBoxLayout* layout);
+  QWidget* makeParameterEditor(const femesher::ParameterDescriptor& d, QWidget* owner);
   void fillMaterialTable();
   void updateSizeHint();
   void updateButtons();
