@@ -1,10 +1,14 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #pragma once
-// Generated label volumes shared by the logic tests. Each function documents its dims, spacing,
-// labels and what makes the shape special. Unless a function says otherwise: spacing 1 mm, origin
+// Generated label volumes shared by the logic tests, and the minimal input of the stages after
+// the indicator functions. Each shape documents its dims, spacing, labels and what makes it
+// special. Unless a function says otherwise: spacing 1 mm, origin
 // 0, identity direction, and label 0 is the background. "Centred coordinates" (x, y, z) of voxel
 // (i, j, k) are i - (dims[0] - 1) / 2 etc., in voxels from the volume's centre.
+#include <femesher/RunContext.h>
 #include <femesher/Types.h>
+#include <femesher/stages/IndicatorFunctions.h>
+#include <femesher/stages/LabelPreprocess.h>
 
 #include <algorithm>
 #include <array>
@@ -12,6 +16,7 @@
 #include <cstdint>
 #include <functional>
 #include <initializer_list>
+#include <memory>
 #include <string>
 
 namespace femesher::test {
@@ -195,6 +200,27 @@ inline LabelVolume obliqueLeftHanded(LabelVolume v, const Vec3& spacing = {0.7, 
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) v.direction[size_t(3 * r + c)] = R[3 * r + c] * mirror[size_t(c)];
   return v;
+}
+
+/// `input` after stages 1 and 2 (default preprocessing; indicator functions with `sigma` voxels
+/// and a band of 4 voxels): what the later stages start from. The volume is held by pointer, so
+/// the field's reference to it survives moving the struct.
+struct IndicatorInputs {
+  LabelVolume input;
+  std::unique_ptr<PreprocessedVolume> vol;
+  std::unique_ptr<IndicatorField> field;
+};
+
+inline IndicatorInputs computeIndicatorInputs(const LabelVolume& input, double sigma) {
+  IndicatorInputs in;
+  in.input = input;
+  RunContext ctx;
+  in.vol = std::make_unique<PreprocessedVolume>(preprocessLabels(input, {}, ctx));
+  IndicatorParameters ip;
+  ip.sigma = sigma;
+  ip.band = 4;
+  in.field = std::make_unique<IndicatorField>(computeIndicatorFunctions(*in.vol, ip, ctx));
+  return in;
 }
 
 }  // namespace femesher::test

@@ -27,6 +27,20 @@ IndicatorParameters withSigma(double sigma) {
   return p;
 }
 
+/// ballsInShell(n) with the given spacing, preprocessed (default parameters).
+PreprocessedVolume preprocessedBalls(int n, const Vec3& spacing) {
+  LabelVolume v = test::ballsInShell(n);
+  v.spacing = spacing;
+  RunContext ctx;
+  return preprocessLabels(v, {}, ctx);
+}
+
+IndicatorField indicators(const PreprocessedVolume& pv, double sigma, int threads = 0) {
+  RunContext ctx;
+  ctx.setThreads(threads);
+  return computeIndicatorFunctions(pv, withSigma(sigma), ctx);
+}
+
 bool insideInputBox(const PreprocessedVolume& pv, int i, int j, int k) {
   const int q[3] = {i + pv.offset[0], j + pv.offset[1], k + pv.offset[2]};
   for (int a = 0; a < 3; ++a)
@@ -130,11 +144,8 @@ TEST(IndicatorFunctions, InputBoxIsExactFlatAndSharp) {
 // voxel centre of the other side, minus half the smallest spacing, with the sign of "inside m";
 // values stop at the band (band x largest spacing) and keep 0.35 x smallest spacing from 0.
 TEST(IndicatorFunctions, UnsmoothedFieldIsTheClampedSignedDistance) {
-  LabelVolume v = test::ballsInShell(16);
-  v.spacing = {0.7, 0.4, 0.5};
-  RunContext ctx;
-  const PreprocessedVolume pv = preprocessLabels(v, {}, ctx);
-  const IndicatorField f = computeIndicatorFunctions(pv, withSigma(0), ctx);
+  const PreprocessedVolume pv = preprocessedBalls(16, {0.7, 0.4, 0.5});
+  const IndicatorField f = indicators(pv, 0);
   const Vec3& s = pv.spacing;
   const double smin = 0.4, bandMm = 4 * 0.7, eps = 0.35 * smin;
   int reach[3];
@@ -174,11 +185,8 @@ TEST(IndicatorFunctions, UnsmoothedFieldIsTheClampedSignedDistance) {
 // Without smoothing and with equal spacings, the two labels of two face-neighbours tie exactly
 // (both 0) halfway between their centres, and every other label is well below.
 TEST(IndicatorFunctions, UnsmoothedNeighboursTieHalfwayBetweenTheirCentres) {
-  LabelVolume v = test::ballsInShell(20);
-  v.spacing = {0.8, 0.8, 0.8};
-  RunContext ctx;
-  const PreprocessedVolume pv = preprocessLabels(v, {}, ctx);
-  const IndicatorField f = computeIndicatorFunctions(pv, withSigma(0), ctx);
+  const PreprocessedVolume pv = preprocessedBalls(20, {0.8, 0.8, 0.8});
+  const IndicatorField f = indicators(pv, 0);
   size_t faces = 0, notTied = 0, thirdTooHigh = 0;
   forEachInputVoxel(pv, [&](int i, int j, int k) {
     for (int a = 0; a < 3; ++a) {
@@ -206,13 +214,8 @@ TEST(IndicatorFunctions, UnsmoothedNeighboursTieHalfwayBetweenTheirCentres) {
 // 2 w x (largest jump between neighbours, 2 x 0.9 - 0.6 mm here), 0.028 mm in all; sigma 0.8
 // changes more and smooths the staircase much more.
 TEST(IndicatorFunctions, SmoothingKeepsTheSignsAndSmoothsWithSigma) {
-  LabelVolume v = test::ballsInShell(24);
-  v.spacing = {0.6, 0.6, 0.9};
-  RunContext ctx;
-  const PreprocessedVolume pv = preprocessLabels(v, {}, ctx);
-  const IndicatorField f0 = computeIndicatorFunctions(pv, withSigma(0), ctx);
-  const IndicatorField f3 = computeIndicatorFunctions(pv, withSigma(0.3), ctx);
-  const IndicatorField f8 = computeIndicatorFunctions(pv, withSigma(0.8), ctx);
+  const PreprocessedVolume pv = preprocessedBalls(24, {0.6, 0.6, 0.9});
+  const IndicatorField f0 = indicators(pv, 0), f3 = indicators(pv, 0.3), f8 = indicators(pv, 0.8);
   const double eps = 0.35 * 0.6;
   double change3 = 0, change8 = 0;
   size_t badSign = 0;
@@ -238,40 +241,40 @@ TEST(IndicatorFunctions, SmoothingKeepsTheSignsAndSmoothsWithSigma) {
 }
 
 // A label whose bounding box is thinner than 4 sigma is smoothed with a quarter of its
-// thickness: a one-voxel plate gets sigma 0.25 whatever larger sigma is asked for, while the
-// background around it does get the larger sigma.
+// thickness: a one-voxel plate gets sigma 0.25 and a rod two voxels thick 0.5 whatever larger
+// sigma is asked for, while the background around them does get the larger sigma.
 TEST(IndicatorFunctions, ThinLabelsAreSmoothedLess) {
-  const LabelVolume v = test::oneVoxelPlate(24);
-  RunContext ctx;
-  const PreprocessedVolume pv = preprocessLabels(v, {}, ctx);
-  ASSERT_EQ(pv.materialCount(), 1);
-  const IndicatorField asked = computeIndicatorFunctions(pv, withSigma(0.8), ctx);
-  const IndicatorField quarter = computeIndicatorFunctions(pv, withSigma(0.25), ctx);
-  size_t plateDiffers = 0, backgroundDiffers = 0, plateCentres = 0;
-  for (int k = 0; k < pv.dims[2]; ++k)
-    for (int j = 0; j < pv.dims[1]; ++j)
-      for (int i = 0; i < pv.dims[0]; ++i) {
-        plateDiffers += asked.value(1, i, j, k) != quarter.value(1, i, j, k);
-        backgroundDiffers += asked.value(0, i, j, k) != quarter.value(0, i, j, k);
-        if (pv.at(i, j, k) == 1) {
-          ++plateCentres;
-          EXPECT_GT(asked.value(1, i, j, k), asked.value(0, i, j, k));
+  for (const auto& [v, thin] :
+       {std::pair(test::oneVoxelPlate(24), 0.25), std::pair(test::thinRod(32), 0.5)}) {
+    SCOPED_TRACE("sigma " + std::to_string(thin));
+    RunContext ctx;
+    const PreprocessedVolume pv = preprocessLabels(v, {}, ctx);
+    ASSERT_EQ(pv.materialCount(), 1);
+    const IndicatorField asked = indicators(pv, 0.8), quarter = indicators(pv, thin);
+    size_t materialDiffers = 0, backgroundDiffers = 0, materialCentres = 0, wrongSide = 0;
+    for (int k = 0; k < pv.dims[2]; ++k)
+      for (int j = 0; j < pv.dims[1]; ++j)
+        for (int i = 0; i < pv.dims[0]; ++i) {
+          materialDiffers += asked.value(1, i, j, k) != quarter.value(1, i, j, k);
+          backgroundDiffers += asked.value(0, i, j, k) != quarter.value(0, i, j, k);
+          if (pv.at(i, j, k) != 1) continue;
+          ++materialCentres;
+          wrongSide += !(asked.value(1, i, j, k) > asked.value(0, i, j, k));
         }
-      }
-  EXPECT_EQ(plateCentres, 12u * 12u);
-  EXPECT_EQ(plateDiffers, 0u);
-  EXPECT_GT(backgroundDiffers, 100u);
+    EXPECT_EQ(materialCentres, pv.voxelCounts[1]);
+    EXPECT_GT(materialCentres, 100u);
+    EXPECT_EQ(wrongSide, 0u);
+    EXPECT_EQ(materialDiffers, 0u);
+    EXPECT_GT(backgroundDiffers, 100u);
+  }
 }
 
 TEST(IndicatorFunctions, SameFieldForAnyThreadCount) {
   LabelVolume v = test::nestedThinShells(24);
   v.spacing = {0.7, 0.36, 0.36};
-  RunContext c1, c3;
-  c1.setThreads(1);
-  c3.setThreads(3);
-  const PreprocessedVolume pv = preprocessLabels(v, {}, c1);
-  const IndicatorField a = computeIndicatorFunctions(pv, withSigma(0.3), c1);
-  const IndicatorField b = computeIndicatorFunctions(pv, withSigma(0.3), c3);
+  RunContext ctx;
+  const PreprocessedVolume pv = preprocessLabels(v, {}, ctx);
+  const IndicatorField a = indicators(pv, 0.3, 1), b = indicators(pv, 0.3, 3);
   ASSERT_EQ(a.labelCount(), 4);
   size_t differ = 0;
   for (int m = 0; m < a.labelCount(); ++m)
@@ -282,8 +285,8 @@ TEST(IndicatorFunctions, SameFieldForAnyThreadCount) {
 }
 
 TEST(IndicatorFunctions, CancelStopsTheStage) {
+  const PreprocessedVolume pv = preprocessedBalls(16, {1, 1, 1});
   RunContext ctx;
-  const PreprocessedVolume pv = preprocessLabels(test::ballsInShell(16), {}, ctx);
   ctx.cancel();
   expectError(ErrorCode::Canceled, [&] { computeIndicatorFunctions(pv, withSigma(0.3), ctx); });
 }

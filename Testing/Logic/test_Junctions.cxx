@@ -24,22 +24,10 @@ using namespace femesher::testing;
 
 namespace {
 
-/// The inputs of the stage: preprocessed labels and their indicator functions (sigma 0.3).
-struct Inputs {
-  std::unique_ptr<PreprocessedVolume> vol;
-  std::unique_ptr<IndicatorField> field;
-};
+using Inputs = test::IndicatorInputs;
 
-Inputs prepare(const LabelVolume& v) {
-  Inputs in;
-  RunContext ctx;
-  in.vol = std::make_unique<PreprocessedVolume>(preprocessLabels(v, {}, ctx));
-  IndicatorParameters ip;
-  ip.sigma = 0.3;
-  ip.band = 4;
-  in.field = std::make_unique<IndicatorField>(computeIndicatorFunctions(*in.vol, ip, ctx));
-  return in;
-}
+/// The stage's inputs: `v` preprocessed, its indicator functions with sigma 0.3.
+Inputs prepare(const LabelVolume& v) { return test::computeIndicatorInputs(v, 0.3); }
 
 JunctionParameters junctionParameters(double spacingFactor = 1.0, int relaxIterations = 10) {
   JunctionParameters p;

@@ -22,24 +22,10 @@ using namespace femesher::testing;
 
 namespace {
 
-/// The inputs of the stage: preprocessed labels and their indicator functions (sigma 0.3).
-struct Inputs {
-  LabelVolume input;
-  std::unique_ptr<PreprocessedVolume> vol;
-  std::unique_ptr<IndicatorField> field;
-};
+using Inputs = test::IndicatorInputs;
 
-Inputs prepare(const LabelVolume& v) {
-  Inputs in;
-  in.input = v;
-  RunContext ctx;
-  in.vol = std::make_unique<PreprocessedVolume>(preprocessLabels(v, {}, ctx));
-  IndicatorParameters ip;
-  ip.sigma = 0.3;
-  ip.band = 4;
-  in.field = std::make_unique<IndicatorField>(computeIndicatorFunctions(*in.vol, ip, ctx));
-  return in;
-}
+/// The stage's inputs: `v` preprocessed, its indicator functions with sigma 0.3.
+Inputs prepare(const LabelVolume& v) { return test::computeIndicatorInputs(v, 0.3); }
 
 SurfaceSamples sample(const Inputs& in, double h, uint64_t seed = 1,
                       std::function<double(const Vec3&)> sizing = {}) {

@@ -49,11 +49,8 @@ BoundarySurface cubeSurface(int32_t innerLabel) {
   v.spacing = kSpacing;
   for (auto& l : v.labels)
     if (l == 2) l = innerLabel;
-  RunContext ctx;
-  const PreprocessedVolume pv = preprocessLabels(v, {}, ctx);
-  IndicatorParameters ip;
-  ip.sigma = 0;
-  const IndicatorField field = computeIndicatorFunctions(pv, ip, ctx);
+  const test::IndicatorInputs in = test::computeIndicatorInputs(v, 0);
+  const PreprocessedVolume& pv = *in.vol;
   std::vector<Vec3> points;
   for (int h : {kOuter, kInner}) {
     const double lo = kN / 2 - h - 0.5, hi = kN / 2 + h - 0.5;  // input index of the faces
@@ -63,7 +60,8 @@ BoundarySurface cubeSurface(int32_t innerLabel) {
           if (x == lo || x == hi || y == lo || y == hi || z == lo || z == hi)
             points.push_back({x - pv.offset[0], y - pv.offset[1], z - pv.offset[2]});
   }
-  return buildBoundaryMesh(field, points, SurfaceSamples{}, ctx, 0, nullptr, false);
+  RunContext ctx;
+  return buildBoundaryMesh(*in.field, points, SurfaceSamples{}, ctx, 0, nullptr, false);
 }
 
 /// The result as a TetMesh (canonical frame, compact labels).
