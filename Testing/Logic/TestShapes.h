@@ -2,9 +2,9 @@
 #pragma once
 // Generated label volumes shared by the logic tests, and the minimal input of the stages after
 // the indicator functions. Each shape documents its dims, spacing, labels and what makes it
-// special. Unless a function says otherwise: spacing 1 mm, origin
-// 0, identity direction, and label 0 is the background. "Centred coordinates" (x, y, z) of voxel
-// (i, j, k) are i - (dims[0] - 1) / 2 etc., in voxels from the volume's centre.
+// special. Unless a function says otherwise: spacing 1 mm, origin 0, identity direction, and
+// label 0 is the background. "Centred coordinates" (x, y, z) of voxel (i, j, k) are
+// i - (dims[0] - 1) / 2 etc., in voxels from the volume's centre.
 #include <femesher/RunContext.h>
 #include <femesher/Types.h>
 #include <femesher/stages/IndicatorFunctions.h>
@@ -141,7 +141,8 @@ inline LabelVolume thinRod(int n = 32) {
 
 /// n^3 voxels, 1 mm: a core ball 1 (radius 0.2 n) inside two nested, touching spherical shells
 /// 2 (to radius 0.28 n) and 3 (to radius 0.36 n), in background. Each shell is a few voxels thick
-/// (2.5 for n = 32); every interface is a closed sphere and no three materials meet.
+/// (2.5 for n = 32); every interface is a closed sphere and no three materials meet (for n = 24
+/// no dual cell of 2 x 2 x 2 voxels holds three labels: Junctions.NoneWhereOnlyTwoMaterialsMeet).
 inline LabelVolume nestedThinShells(int n = 32) {
   return makeVolume(n, [n](double x, double y, double z) {
     const double r = std::sqrt(x * x + y * y + z * z);
