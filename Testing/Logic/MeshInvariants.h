@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #pragma once
-// Invariant checks shared by the meshing tests: conformity, orientation, labels, extent.
+// Invariant checks shared by the meshing tests: conformity, orientation, labels, extent,
+// material volumes, interface triangles; and the expected-error check.
+#include <femesher/Status.h>
 #include <femesher/Types.h>
 
 #include <gtest/gtest.h>
@@ -12,6 +14,8 @@
 #include <map>
 #include <set>
 #include <string>
+#include <tuple>
+#include <utility>
 #include <unordered_map>
 
 namespace femesher::testing {
@@ -82,6 +86,54 @@ inline void expectWithinLabelExtent(const TetMesh& m, const LabelVolume& v, doub
 /// Labels of the mesh (set).
 inline std::set<int32_t> meshLabels(const TetMesh& m) {
   return std::set<int32_t>(m.tetLabels.begin(), m.tetLabels.end());
+}
+
+/// Volume of the tets of each label.
+inline std::map<int32_t, double> labelVolumes(const TetMesh& m) {
+  std::map<int32_t, double> vol;
+  for (size_t t = 0; t < m.tets.size(); ++t) vol[m.tetLabels[t]] += m.tetVolume(t);
+  return vol;
+}
+
+/// A triangle by its geometry: the label pair (smaller first; `exterior` stands for
+/// kExteriorLabel) and the three vertex positions, sorted.
+struct TriangleKey {
+  std::pair<int32_t, int32_t> labels;
+  std::array<Vec3, 3> corners;
+  bool operator<(const TriangleKey& o) const {
+    return std::tie(labels, corners) < std::tie(o.labels, o.corners);
+  }
+  bool operator==(const TriangleKey& o) const { return labels == o.labels && corners == o.corners; }
+};
+
+inline TriangleKey triangleKey(int32_t a, int32_t b, const Vec3& p, const Vec3& q, const Vec3& r) {
+  TriangleKey k{{std::min(a, b), std::max(a, b)}, {{p, q, r}}};
+  std::sort(k.corners.begin(), k.corners.end());
+  return k;
+}
+
+/// Every interface triangle of a mesh (extractInterfaces) by its geometry, the outer boundary
+/// with label `exterior`.
+inline std::set<TriangleKey> interfaceTriangleKeys(const TetMesh& m, int32_t exterior) {
+  std::set<TriangleKey> out;
+  for (const auto& t : extractInterfaces(m))
+    out.insert(triangleKey(t.labelA, t.labelB == kExteriorLabel ? exterior : t.labelB,
+                           m.points[size_t(t.v[0])], m.points[size_t(t.v[1])],
+                           m.points[size_t(t.v[2])]));
+  return out;
+}
+
+/// Runs `fn`, expects it to throw femesher::Error with `code`; returns the error's message.
+template <class Fn>
+std::string expectError(ErrorCode code, Fn&& fn) {
+  try {
+    fn();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), code) << e.what();
+    return e.what();
+  }
+  ADD_FAILURE() << "expected the error " << errorCodeName(code);
+  return {};
 }
 
 }  // namespace femesher::testing

@@ -2,6 +2,7 @@
 // Fidelity: Dice, volumes, boundary distances and missing labels against meshes built from the
 // voxels themselves (each labelled voxel box split into 6 Kuhn tets, shared corners).
 #include "MeshInvariants.h"
+#include "TestShapes.h"
 
 #include <femesher/RunContext.h>
 #include <femesher/io/LabelMapIO.h>
@@ -19,21 +20,11 @@ using namespace femesher;
 
 namespace {
 
-/// Oblique, left-handed geometry with anisotropic spacing (x is the smallest spacing).
+/// An all-background volume with the oblique, left-handed, anisotropic test geometry (spacing
+/// 0.7 x 1.1 x 1.6 mm: x is the smallest spacing).
 LabelVolume obliqueVolume(int nx, int ny, int nz) {
-  LabelVolume v;
-  v.dims = {nx, ny, nz};
-  v.spacing = {0.7, 1.1, 1.6};
-  v.origin = {10, -20, 5};
-  // Rotation (about a skew axis) times diag(1, 1, -1): det = -1.
-  const double a = 0.4, b = 0.3;
-  const double R[9] = {std::cos(a), -std::sin(a) * std::cos(b), std::sin(a) * std::sin(b),
-                       std::sin(a), std::cos(a) * std::cos(b), -std::cos(a) * std::sin(b),
-                       0, std::sin(b), std::cos(b)};
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) v.direction[size_t(3 * r + c)] = R[3 * r + c] * (c == 2 ? -1 : 1);
-  v.labels.assign(v.voxelCount(), 0);
-  return v;
+  return test::obliqueLeftHanded(
+      test::makeVolume({nx, ny, nz}, {1, 1, 1}, [](double, double, double) { return 0; }));
 }
 
 /// Voxel-box mesh: every voxel whose label passes `keep` becomes a cube of 6 tets; the cube of
