@@ -20,19 +20,16 @@
 ///  - labels -> mesh: boundary face centres to the nearest interface triangle (CGAL AABB tree).
 /// Both directions are subsampled with a deterministic stride above kMaxSamples ("sampled").
 
-#include <femesher/Parallel.h>
-#include <femesher/RunContext.h>
-#include <femesher/Status.h>
-#include <femesher/stages/Fidelity.h>
-
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
 #include <CGAL/AABB_triangle_primitive.h>
 #include <CGAL/Orthogonal_k_neighbor_search.h>
 #include <CGAL/Search_traits_3.h>
 #include <CGAL/Simple_cartesian.h>
-
-#include <nlohmann/json.hpp>
+#include <femesher/Parallel.h>
+#include <femesher/RunContext.h>
+#include <femesher/Status.h>
+#include <femesher/stages/Fidelity.h>
 
 #include <algorithm>
 #include <atomic>
@@ -40,6 +37,7 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <unordered_map>
 
@@ -68,7 +66,8 @@ class LabelIndex {
     const int64_t range = sorted.empty() ? 0 : int64_t(sorted.back()) - lo_ + 1;
     if (range <= (int64_t(1) << 22)) {
       table_.assign(size_t(range), 0);
-      for (size_t k = 0; k < sorted.size(); ++k) table_[size_t(int64_t(sorted[k]) - lo_)] = uint16_t(k);
+      for (size_t k = 0; k < sorted.size(); ++k)
+        table_[size_t(int64_t(sorted[k]) - lo_)] = uint16_t(k);
     } else {
       for (size_t k = 0; k < sorted.size(); ++k) map_[sorted[k]] = uint16_t(k);
     }
@@ -157,7 +156,8 @@ std::vector<uint16_t> rasterize(const LabelVolume& labels, const TetMesh& mesh,
         const Vec3 &a = idx[T[0]], &b = idx[T[1]], &c = idx[T[2]], &d = idx[T[3]];
         int lo[2], hi[2];
         for (int k = 0; k < 2; ++k) {
-          const double mn = std::min({a[k], b[k], c[k], d[k]}), mx = std::max({a[k], b[k], c[k], d[k]});
+          const double mn = std::min({a[k], b[k], c[k], d[k]}),
+                       mx = std::max({a[k], b[k], c[k], d[k]});
           lo[k] = std::max(0, int(std::max(-1.0, std::ceil(mn - 1e-6))));
           hi[k] = std::min(dims[k] - 1, int(std::min(double(dims[k]), std::floor(mx + 1e-6))));
         }
@@ -189,7 +189,9 @@ std::vector<uint16_t> rasterize(const LabelVolume& labels, const TetMesh& mesh,
                                g[1][2] + g[2][2] + g[3][2]};
           keepOnFace[0] = lexPositive(n);
         }
-        auto ok = [&](double l, int f) { return l > kBaryTol || (l >= -kBaryTol && keepOnFace[f]); };
+        auto ok = [&](double l, int f) {
+          return l > kBaryTol || (l >= -kBaryTol && keepOnFace[f]);
+        };
         const uint16_t lab = tetValue[t];
         for (int z = lo2; z <= hi2; ++z)
           for (int y = lo[1]; y <= hi[1]; ++y) {
@@ -219,8 +221,9 @@ void validateInputs(const LabelVolume& labels, const TetMesh& mesh, const std::s
     throw Error(ErrorCode::InvalidArgument,
                 "Fidelity: " + where + " has inconsistent dimensions and voxel data; reload it");
   if (!(sp[0] > 0 && sp[1] > 0 && sp[2] > 0) || std::fabs(labels.directionDeterminant()) < 1e-12)
-    throw Error(ErrorCode::InvalidArgument,
-                "Fidelity: " + where + " has a non-positive spacing or a singular direction matrix");
+    throw Error(
+        ErrorCode::InvalidArgument,
+        "Fidelity: " + where + " has a non-positive spacing or a singular direction matrix");
   if (mesh.tetLabels.size() != mesh.tets.size())
     throw Error(ErrorCode::InvalidArgument,
                 "Fidelity: the mesh has " + std::to_string(mesh.tets.size()) + " tets but " +
@@ -646,8 +649,8 @@ FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh, R
         rasterize(labels, mesh, tetIndex, index(0), threads, ctx);
     checkCancel(ctx);
     if (ctx) ctx->progress(0.35);
-    addMaterialFigures(labels, mesh, index, tetIndex, countVoxels(labels, index, meshLabel, threads),
-                       rep);
+    addMaterialFigures(labels, mesh, index, tetIndex,
+                       countVoxels(labels, index, meshLabel, threads), rep);
   }
   checkCancel(ctx);
   if (ctx) ctx->progress(0.45);
@@ -676,12 +679,11 @@ FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh, R
   return rep;
 }
 
-
 LabelVolume rasterizeMesh(const LabelVolume& grid, const TetMesh& mesh, RunContext* ctx) {
   if (mesh.tetLabels.size() != mesh.tets.size())
-    throw Error(ErrorCode::InvalidArgument, "rasterizeMesh: the mesh has " +
-                                                std::to_string(mesh.tets.size()) + " tets but " +
-                                                std::to_string(mesh.tetLabels.size()) + " tet labels");
+    throw Error(ErrorCode::InvalidArgument,
+                "rasterizeMesh: the mesh has " + std::to_string(mesh.tets.size()) + " tets but " +
+                    std::to_string(mesh.tetLabels.size()) + " tet labels");
   std::vector<int32_t> ids(mesh.tetLabels.begin(), mesh.tetLabels.end());
   ids.push_back(0);
   std::sort(ids.begin(), ids.end());
@@ -709,16 +711,22 @@ std::string fidelityReportToJson(const FidelityReport& r) {
   nlohmann::json j;
   nlohmann::json mats = nlohmann::json::array();
   for (const auto& m : r.materials)
-    mats.push_back({{"label", m.label}, {"name", m.name}, {"voxels", m.voxels},
-                    {"mesh_voxels", m.meshVoxels}, {"voxel_volume_mm3", m.voxelVolume},
-                    {"mesh_volume_mm3", m.meshVolume}, {"volume_error", m.volumeError},
-                    {"dice", m.dice}, {"tets", m.tets}});
+    mats.push_back({{"label", m.label},
+                    {"name", m.name},
+                    {"voxels", m.voxels},
+                    {"mesh_voxels", m.meshVoxels},
+                    {"voxel_volume_mm3", m.voxelVolume},
+                    {"mesh_volume_mm3", m.meshVolume},
+                    {"volume_error", m.volumeError},
+                    {"dice", m.dice},
+                    {"tets", m.tets}});
   j["materials"] = mats;
   j["missing_labels"] = r.missingLabels;
   auto ds = [](const DistanceStats& s) {
     return nlohmann::json{{"samples", s.samples}, {"population", s.population},
-                          {"sampled", s.sampled}, {"mean", s.mean}, {"median", s.median},
-                          {"p95", s.p95},         {"p99", s.p99},   {"max", s.max}};
+                          {"sampled", s.sampled}, {"mean", s.mean},
+                          {"median", s.median},   {"p95", s.p95},
+                          {"p99", s.p99},         {"max", s.max}};
   };
   j["dice_definition"] =
       "2|A∩B|/(|A|+|B|) over voxel centres; B = centres inside tets of the label";

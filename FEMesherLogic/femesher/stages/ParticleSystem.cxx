@@ -37,7 +37,6 @@ double kernelSecondDerivative(double r, double s) {
   return w * w * 2.0 * c / (sn * sn);
 }
 
-
 /// Median of `v` (`fallback` when empty): the neighbour grids use it as their cell size.
 double median(std::vector<double> v, double fallback) {
   if (v.empty()) return fallback;
@@ -151,8 +150,8 @@ struct Grid {
 /// Canonical positions and target sizes of the particles, and their interface normals when `nrm`
 /// is given (zero for junction particles). Returns the largest size, at least S.smin.
 double sampleParticles(const std::vector<Particle>& P, const Surface& S,
-                       const SizingFunction& sizing, std::vector<Vec3>& pos,
-                       std::vector<double>& h, std::vector<Vec3>* nrm) {
+                       const SizingFunction& sizing, std::vector<Vec3>& pos, std::vector<double>& h,
+                       std::vector<Vec3>* nrm) {
   const size_t n = P.size();
   pos.resize(n);
   h.resize(n);
@@ -400,8 +399,8 @@ double recordIteration(const JacobiStep& st, size_t nFixed, int iteration,
   ctx.debug("ParticleSystem iteration " + std::to_string(iteration) + ": min nearest/h " +
             std::to_string(minNearest) + ", max particle energy " + std::to_string(maxEnergy));
   ctx.debug("ParticleSystem iteration " + std::to_string(iteration) + ": " + std::to_string(n) +
-            " particles, energy " + std::to_string(total) + ", moves/h p95 " +
-            std::to_string(p95) + " max " + std::to_string(maxMove));
+            " particles, energy " + std::to_string(total) + ", moves/h p95 " + std::to_string(p95) +
+            " max " + std::to_string(maxMove));
   res.finalMaxMove = maxMove;
   res.finalMoveP95 = p95;
   return p95;
@@ -415,7 +414,10 @@ class PopulationControl {
  public:
   PopulationControl(const JacobiStep& st, size_t nFixed, int iteration, bool populationStep,
                     const ParticleSystemParameters& params)
-      : st_(st), nFixed_(nFixed), iteration_(iteration), populationStep_(populationStep),
+      : st_(st),
+        nFixed_(nFixed),
+        iteration_(iteration),
+        populationStep_(populationStep),
         params_(params) {}
 
   /// Whether this iteration needs a pass: a population step, near-duplicates or lost seeds.
@@ -608,8 +610,8 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
     stableIterations = p95 < params.tolerance ? stableIterations + 1 : 0;
 
     // Population control: split and delete.
-    const bool populationStep = (iteration + 1) % params.populationInterval == 0 &&
-                                iteration + 1 < params.maxIterations;
+    const bool populationStep =
+        (iteration + 1) % params.populationInterval == 0 && iteration + 1 < params.maxIterations;
     PopulationControl population(step, nFixed, iteration, populationStep, params);
     if (population.needed()) {
       const bool changed = population.apply(P, lambda, res);
