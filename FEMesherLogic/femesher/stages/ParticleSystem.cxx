@@ -37,7 +37,6 @@ double kernelSecondDerivative(double r, double s) {
   return w * w * 2.0 * c / (sn * sn);
 }
 
-
 /// Median of `v` (`fallback` when empty): the neighbour grids use it as their cell size.
 double median(std::vector<double> v, double fallback) {
   if (v.empty()) return fallback;
@@ -148,6 +147,428 @@ struct Grid {
   }
 };
 
+/// Canonical positions and target sizes of the particles, and their interface normals when `nrm`
+/// is given (zero for junction particles). Returns the largest size, at least S.smin.
+double sampleParticles(const std::vector<Particle>& P, const Surface& S,
+                       const SizingFunction& sizing, std::vector<Vec3>& pos, std::vector<double>& h,
+                       std::vector<Vec3>* nrm) {
+  const size_t n = P.size();
+  pos.resize(n);
+  h.resize(n);
+  if (nrm) nrm->resize(n);
+  double hMax = S.smin;
+  for (size_t i = 0; i < n; ++i) {
+    pos[i] = S.canonical(P[i].local);
+    h[i] = sizing(pos[i]);
+    hMax = std::max(hMax, h[i]);
+    if (nrm) (*nrm)[i] = P[i].junction < 0 ? S.normal(P[i].a, P[i].b, P[i].local) : Vec3{0, 0, 0};
+  }
+  return hMax;
+}
+
+/// Set-up: the fixed junction particles, then every selected seed that is not within half a
+/// spacing of a junction particle carrying its interface.
+std::vector<Particle> initialParticles(const Surface& S, const SurfaceSamples& seeds,
+                                       const Junctions& junctions, const SizingFunction& sizing) {
+  std::vector<Particle> P = junctionParticles(junctions);
+  const size_t nFixed = P.size();
+  std::vector<Vec3> jc(nFixed);
+  double hMax = S.smin;
+  for (size_t i = 0; i < nFixed; ++i) {
+    jc[i] = S.canonical(P[i].local);
+    hMax = std::max(hMax, sizing(jc[i]));
+  }
+  Grid g;
+  g.cell = hMax;
+  g.build(jc);
+  for (uint32_t s : seeds.selected) {
+    const SurfaceSample& smp = seeds.all[s];
+    const Vec3 c = S.canonical(smp.local);
+    const double h = sizing(c);
+    bool nearJunction = false;
+    g.forEachNear(c, 0.5 * h, [&](uint32_t j) {
+      const Vec3 d{c[0] - jc[j][0], c[1] - jc[j][1], c[2] - jc[j][2]};
+      if (dot(d, d) < 0.25 * h * h && junctions.particles[j].contains(smp.a, smp.b))
+        nearJunction = true;
+    });
+    if (nearJunction) continue;
+    Particle p;
+    p.local = smp.local;
+    p.a = smp.a;
+    p.b = smp.b;
+    P.push_back(p);
+  }
+  return P;
+}
+
+/// Preview: the particles in physical coordinates, grouped by interface.
+void sendPreview(RunContext& ctx, const std::vector<Particle>& P, const Surface& S,
+                 const LabelVolume& input, int iteration, bool force) {
+  if (!ctx.wantsPreview()) return;
+  auto snap = std::make_shared<PreviewSnapshot>();
+  snap->stage = "ParticleSystem";
+  snap->kind = "points";
+  snap->iteration = iteration;
+  std::unordered_map<uint32_t, int32_t> groupOf;
+  for (const auto& p : P) {
+    const uint32_t key = (uint32_t(p.a) << 16) | p.b;
+    auto it = groupOf.find(key);
+    if (it == groupOf.end()) {
+      it = groupOf.emplace(key, int32_t(snap->groups.size())).first;
+      snap->groups.emplace_back(p.a == 0 ? kExteriorLabel : S.vol.userLabel[p.a],
+                                S.vol.userLabel[p.b]);
+    }
+    const Vec3 x = input.canonicalToPhysical(S.canonical(p.local));
+    snap->points.push_back({float(x[0]), float(x[1]), float(x[2])});
+    snap->pointGroup.push_back(it->second);
+  }
+  ctx.preview(snap, force);
+}
+
+using Neighbours = std::vector<std::pair<uint32_t, double>>;  ///< (particle, kernel support s)
+
+/// One iteration's forces, moves and projection (Jacobi: every move reads the positions at the
+/// start of the iteration only, so the result does not depend on the thread count).
+struct JacobiStep {
+  const std::vector<Particle>& P;
+  const Junctions& junctions;
+  const Surface& S;
+  double k, maxStepFactor;
+  // Snapshot at the start of the iteration.
+  std::vector<Vec3> pos, nrm;
+  std::vector<double> h;
+  Grid grid;
+  // Per particle results.
+  std::vector<Vec3> next;
+  std::vector<double> moved, energy, nearest;
+  std::vector<char> lost;
+  std::vector<int32_t> nearestId;
+
+  JacobiStep(const std::vector<Particle>& particles, const Junctions& j, const Surface& s,
+             const SizingFunction& sizing, double kernelScale, double maxStep)
+      : P(particles), junctions(j), S(s), k(kernelScale), maxStepFactor(maxStep) {
+    const double hMax = sampleParticles(P, S, sizing, pos, h, &nrm);
+    // Cells of the median interaction radius: with an adaptive field hMax can be many times the
+    // typical h, and cells that large would hold hundreds of particles each.
+    grid.cell = k * median(h, hMax);
+    grid.build(pos);
+    const size_t n = P.size();
+    next.resize(n);
+    moved.assign(n, 0.0);
+    energy.assign(n, 0.0);
+    nearest.assign(n, 1e300);
+    lost.assign(n, 0);
+    nearestId.assign(n, -1);
+  }
+
+  /// Moves every surface particle; `lambda` holds the per-particle step factors.
+  void run(int iteration, std::vector<double>& lambda, int threads) {
+    parallelFor(P.size(), threads, [&](size_t b, size_t e, int) {
+      Neighbours nb;
+      for (size_t i = b; i < e; ++i) relax(i, iteration, lambda[i], nb);
+    });
+  }
+
+  /// Interacting neighbours of particle i: same interface with agreeing normals, or a junction
+  /// particle carrying the interface, within the kernel support.
+  void neighbours(size_t i, Neighbours& out) const {
+    out.clear();
+    const Particle& p = P[i];
+    grid.forEachNear(pos[i], k * h[i], [&](uint32_t j) {
+      if (j == i) return;
+      const Particle& q = P[j];
+      if (q.junction >= 0) {
+        if (!junctions.particles[size_t(q.junction)].contains(p.a, p.b)) return;
+      } else if (q.a != p.a || q.b != p.b || dot(nrm[i], nrm[j]) < 0.5) {
+        return;
+      }
+      const double s = k * std::min(h[i], h[j]);
+      const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
+      if (dot(d, d) < s * s) out.emplace_back(j, s);
+    });
+  }
+
+  double energyAt(const Vec3& x, const Neighbours& nb) const {
+    double e = 0;
+    for (const auto& [j, s] : nb) {
+      const Vec3 d{x[0] - pos[j][0], x[1] - pos[j][1], x[2] - pos[j][2]};
+      e += kernel(std::sqrt(dot(d, d)), s);
+    }
+    return e;
+  }
+
+  /// Particle i: nearest neighbour, energy, tangential force and stiffness, then the step.
+  void relax(size_t i, int iteration, double& f, Neighbours& nb) {
+    next[i] = P[i].local;
+    if (P[i].junction >= 0) return;
+    neighbours(i, nb);
+    for (const auto& [j, s] : nb) {
+      const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
+      const double r = std::sqrt(dot(d, d));
+      if (r < nearest[i]) {
+        nearest[i] = r;
+        nearestId[i] = int32_t(j);
+      }
+    }
+    const double e0 = energyAt(pos[i], nb);
+    energy[i] = e0;
+    Vec3 g{0, 0, 0};
+    double stiffness = 0;
+    for (const auto& [j, s] : nb) {
+      const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
+      const double r = std::max(std::sqrt(dot(d, d)), 1e-12);
+      const double dE = kernelDerivative(r, s);
+      for (int a = 0; a < 3; ++a) g[a] += dE * d[a] / r;
+      stiffness += kernelSecondDerivative(r, s);
+    }
+    const double gn = dot(g, nrm[i]);
+    for (int a = 0; a < 3; ++a) g[a] -= gn * nrm[i][a];
+    const double gl = std::sqrt(dot(g, g));
+    if (gl < 1e-12 || stiffness <= 0) return;
+    dampedNewtonStep(i, nb, e0, g, gl, stiffness, f);
+    // A seed that cannot be projected onto its interface at all is dropped.
+    if (iteration == 0) {
+      Vec3 check = next[i];
+      if (!S.project(P[i].a, P[i].b, check)) lost[i] = 1;
+    }
+  }
+
+  /// Damped Newton step along the tangential force g (length gl): -f g / H with H the summed
+  /// radial stiffness of the kernel; f adapts per particle (x1.25 on success, x0.5 on failure)
+  /// within [0.05, 0.5], which keeps the simultaneous (Jacobi) update from oscillating.
+  void dampedNewtonStep(size_t i, const Neighbours& nb, double e0, const Vec3& g, double gl,
+                        double stiffness, double& f) {
+    if (f <= 0) f = 0.25;
+    for (int attempt = 0; attempt < 3; ++attempt) {
+      double step = f * gl / stiffness;
+      // At most a quarter of the distance to the nearest neighbour: two particles moving
+      // towards each other in the same (Jacobi) iteration can then never collide.
+      const double cap = std::min(maxStepFactor * h[i], std::max(0.25 * nearest[i], 0.05 * h[i]));
+      const double scale = step > cap ? cap / step : 1.0;
+      const double mul = f * scale / stiffness;
+      const Vec3 c{pos[i][0] - mul * g[0], pos[i][1] - mul * g[1], pos[i][2] - mul * g[2]};
+      Vec3 l = S.toLocal(c);
+      if (!S.project(P[i].a, P[i].b, l)) {
+        f = std::max(f * 0.5, 0.05);
+        continue;
+      }
+      const Vec3 cp = S.canonical(l);
+      // The projection must land near the tangent step (not on another fold of the
+      // interface, where the neighbour list would not apply).
+      const Vec3 dp{cp[0] - c[0], cp[1] - c[1], cp[2] - c[2]};
+      const double intended = std::min(step, cap);
+      if (dot(dp, dp) > std::pow(intended + 0.05 * h[i], 2)) {
+        f = std::max(f * 0.5, 0.05);
+        continue;
+      }
+      if (energyAt(cp, nb) < e0) {
+        next[i] = l;
+        const Vec3 d{cp[0] - pos[i][0], cp[1] - pos[i][1], cp[2] - pos[i][2]};
+        moved[i] = std::sqrt(dot(d, d)) / h[i];
+        f = std::min(f * 1.25, 0.5);
+        break;
+      }
+      f = std::max(f * 0.5, 0.05);
+    }
+  }
+};
+
+/// Iteration figures: energy and moves into `res`, debug lines; returns the 95th percentile of the
+/// moves of the surface particles (relative to h).
+double recordIteration(const JacobiStep& st, size_t nFixed, int iteration,
+                       ParticleSystemResult& res, RunContext& ctx) {
+  const size_t n = st.P.size();
+  double maxMove = 0, total = 0;
+  for (size_t i = 0; i < n; ++i) {
+    maxMove = std::max(maxMove, st.moved[i]);
+    total += st.energy[i];
+  }
+  double p95 = 0;
+  if (n > nFixed) {
+    std::vector<double> m(st.moved.begin() + long(nFixed), st.moved.end());
+    const size_t q = size_t(0.95 * double(m.size() - 1));
+    std::nth_element(m.begin(), m.begin() + long(q), m.end());
+    p95 = m[q];
+  }
+  res.finalEnergy = total;
+  double minNearest = 1e300, maxEnergy = 0;
+  for (size_t i = nFixed; i < n; ++i) {
+    minNearest = std::min(minNearest, st.nearest[i] / st.h[i]);
+    maxEnergy = std::max(maxEnergy, st.energy[i]);
+  }
+  ctx.debug("ParticleSystem iteration " + std::to_string(iteration) + ": min nearest/h " +
+            std::to_string(minNearest) + ", max particle energy " + std::to_string(maxEnergy));
+  ctx.debug("ParticleSystem iteration " + std::to_string(iteration) + ": " + std::to_string(n) +
+            " particles, energy " + std::to_string(total) + ", moves/h p95 " + std::to_string(p95) +
+            " max " + std::to_string(maxMove));
+  res.finalMaxMove = maxMove;
+  res.finalMoveP95 = p95;
+  return p95;
+}
+
+/// Population control (sequential, deterministic) after the moves of iteration `iteration`.
+/// At every iteration lost seeds and near-duplicates (closer than a tenth of h) are removed; on a
+/// population step (`populationStep`) pairs closer than minSpacingFactor x h are thinned, crowded
+/// particles are removed and lonely ones split.
+class PopulationControl {
+ public:
+  PopulationControl(const JacobiStep& st, size_t nFixed, int iteration, bool populationStep,
+                    const ParticleSystemParameters& params)
+      : st_(st),
+        nFixed_(nFixed),
+        iteration_(iteration),
+        populationStep_(populationStep),
+        params_(params) {}
+
+  /// Whether this iteration needs a pass: a population step, near-duplicates or lost seeds.
+  bool needed() const {
+    bool duplicates = false;
+    for (size_t i = nFixed_; i < st_.P.size() && !duplicates; ++i)
+      duplicates = st_.nearest[i] < 0.1 * st_.h[i];
+    return populationStep_ || duplicates ||
+           std::any_of(st_.lost.begin(), st_.lost.end(), [](char c) { return c != 0; });
+  }
+
+  /// Removes and splits particles of `P` (the moved particles of the step), keeping `lambda`
+  /// aligned (-1 for new particles). Returns whether the population changed.
+  bool apply(std::vector<Particle>& P, std::vector<double>& lambda, ParticleSystemResult& res) {
+    const size_t n = P.size();
+    remove_.assign(n, 0);
+    for (size_t i = nFixed_; i < n; ++i) {
+      if (st_.lost[i]) {
+        remove_[i] = 1;
+        ++res.lost;
+        continue;
+      }
+      if (tooClose(i) || (populationStep_ && crowded(i))) {
+        remove_[i] = 1;
+        ++res.removed;
+        continue;
+      }
+      if (populationStep_ && st_.energy[i] < params_.splitEnergyFactor * ideal(i)) split(P[i], i);
+    }
+    std::vector<Particle> kept;
+    std::vector<double> keptLambda;
+    kept.reserve(n + added_.size());
+    for (size_t i = 0; i < n; ++i)
+      if (!remove_[i]) {
+        kept.push_back(P[i]);
+        keptLambda.push_back(lambda[i]);
+      }
+    res.added += added_.size();
+    for (const auto& q : added_) {
+      kept.push_back(q);
+      keptLambda.push_back(-1.0);
+    }
+    const bool changed = kept.size() != n || !added_.empty();
+    P.swap(kept);
+    lambda.swap(keptLambda);
+    return changed;
+  }
+
+ private:
+  /// Energy of particle i in an ideal hexagonal arrangement at spacing h.
+  double ideal(size_t i) const { return 6.0 * kernel(st_.h[i], st_.k * st_.h[i]); }
+
+  /// Of two particles too close, the one with the higher id goes (junction particles stay).
+  bool tooClose(size_t i) const {
+    const int32_t j = st_.nearestId[i];
+    const double minSpacing = populationStep_ ? params_.minSpacingFactor : 0.1;
+    return j >= 0 && st_.nearest[i] < minSpacing * st_.h[i] &&
+           (st_.P[size_t(j)].junction >= 0 || size_t(j) < i) && !remove_[size_t(j)];
+  }
+
+  /// Crowded: far more than the ideal energy, and no neighbour is already being removed.
+  bool crowded(size_t i) const {
+    if (!(st_.energy[i] > params_.deleteEnergyFactor * ideal(i))) return false;
+    const auto& pos = st_.pos;
+    const double k = st_.k, h = st_.h[i];
+    bool neighbourRemoved = false;
+    st_.grid.forEachNear(pos[i], k * h, [&](uint32_t j) {
+      if (j != i && remove_[j] && st_.P[j].a == st_.P[i].a && st_.P[j].b == st_.P[i].b) {
+        const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
+        if (dot(d, d) < k * k * h * h) neighbourRemoved = true;
+      }
+    });
+    return !neighbourRemoved;
+  }
+
+  /// Split: a child of `p` (particle i) half a spacing away in a seeded tangent direction, kept
+  /// only where there is room (existing and new particles).
+  void split(const Particle& p, size_t i) {
+    const Surface& S = st_.S;
+    const double h = st_.h[i];
+    const Vec3& nn = st_.nrm[i];
+    Vec3 t1 = std::fabs(nn[0]) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
+    const double d1 = dot(t1, nn);
+    for (int a = 0; a < 3; ++a) t1[a] -= d1 * nn[a];
+    const double l1 = std::sqrt(dot(t1, t1));
+    for (auto& v : t1) v /= l1;
+    const Vec3 t2{nn[1] * t1[2] - nn[2] * t1[1], nn[2] * t1[0] - nn[0] * t1[2],
+                  nn[0] * t1[1] - nn[1] * t1[0]};
+    const double ang =
+        double(mix64(params_.seed ^ (uint64_t(i) << 20) ^ uint64_t(iteration_)) % 6283) / 1000.0;
+    const Vec3 c = S.canonical(p.local);
+    Vec3 l = S.toLocal({c[0] + 0.5 * h * (std::cos(ang) * t1[0] + std::sin(ang) * t2[0]),
+                        c[1] + 0.5 * h * (std::cos(ang) * t1[1] + std::sin(ang) * t2[1]),
+                        c[2] + 0.5 * h * (std::cos(ang) * t1[2] + std::sin(ang) * t2[2])});
+    if (!S.project(p.a, p.b, l)) return;
+    const Vec3 cc = S.canonical(l);
+    const double room = params_.minSpacingFactor * h;
+    bool free = true;
+    st_.grid.forEachNear(cc, room, [&](uint32_t j) {
+      const Vec3 d{cc[0] - st_.pos[j][0], cc[1] - st_.pos[j][1], cc[2] - st_.pos[j][2]};
+      if (dot(d, d) < room * room) free = false;
+    });
+    for (const auto& q : added_) {
+      const Vec3 cq = S.canonical(q.local);
+      const Vec3 d{cc[0] - cq[0], cc[1] - cq[1], cc[2] - cq[2]};
+      if (dot(d, d) < room * room) free = false;
+    }
+    if (free) {
+      Particle q = p;
+      q.local = l;
+      added_.push_back(q);
+    }
+  }
+
+  const JacobiStep& st_;
+  const size_t nFixed_;
+  const int iteration_;
+  const bool populationStep_;
+  const ParticleSystemParameters& params_;
+  std::vector<char> remove_;
+  std::vector<Particle> added_;
+};
+
+/// Result figure: mean distance to the nearest particle on the same interface, relative to h.
+double meanSpacingRatio(const std::vector<Particle>& P, const Surface& S,
+                        const SizingFunction& sizing, size_t nFixed) {
+  const size_t n = P.size();
+  std::vector<Vec3> pos;
+  std::vector<double> hs;
+  const double hMax = sampleParticles(P, S, sizing, pos, hs, nullptr);
+  Grid grid;
+  grid.cell = 2 * median(hs, hMax);
+  grid.build(pos);
+  double sum = 0;
+  size_t count = 0;
+  for (size_t i = nFixed; i < n; ++i) {
+    const double h = hs[i];
+    double best = 1e300;
+    grid.forEachNear(pos[i], 2 * h, [&](uint32_t j) {
+      if (j == i || P[j].junction >= 0 || P[j].a != P[i].a || P[j].b != P[i].b) return;
+      const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
+      best = std::min(best, std::sqrt(dot(d, d)));
+    });
+    if (best < 1e299) {
+      sum += best / h;
+      ++count;
+    }
+  }
+  return count ? sum / double(count) : 0;
+}
+
 }  // namespace
 
 std::vector<Particle> junctionParticles(const Junctions& junctions) {
@@ -170,314 +591,36 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
                                        const ParticleSystemParameters& params, RunContext& ctx) {
   const PreprocessedVolume& vol = field.volume();
   const Surface S{field, vol, std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]})};
-  const double k = params.kernelScale;
-  const double maxStepFactor = params.maxStepFactor;
   ParticleSystemResult res;
-
-  // --- Particles: fixed junction particles, then seeds away from them ----------------------
-  std::vector<Particle> P = junctionParticles(junctions);
-  const size_t nFixed = P.size();
-  {
-    std::vector<Vec3> jc(nFixed);
-    double hMax = S.smin;
-    for (size_t i = 0; i < nFixed; ++i) {
-      jc[i] = S.canonical(P[i].local);
-      hMax = std::max(hMax, sizing(jc[i]));
-    }
-    Grid g;
-    g.cell = hMax;
-    g.build(jc);
-    for (uint32_t s : seeds.selected) {
-      const SurfaceSample& smp = seeds.all[s];
-      const Vec3 c = S.canonical(smp.local);
-      const double h = sizing(c);
-      bool nearJunction = false;
-      g.forEachNear(c, 0.5 * h, [&](uint32_t j) {
-        const Vec3 d{c[0] - jc[j][0], c[1] - jc[j][1], c[2] - jc[j][2]};
-        if (dot(d, d) < 0.25 * h * h && junctions.particles[j].contains(smp.a, smp.b))
-          nearJunction = true;
-      });
-      if (nearJunction) continue;
-      Particle p;
-      p.local = smp.local;
-      p.a = smp.a;
-      p.b = smp.b;
-      P.push_back(p);
-    }
-  }
-
-  std::vector<double> lambda(P.size(), -1.0);
+  std::vector<Particle> P = initialParticles(S, seeds, junctions, sizing);
+  const size_t nFixed = junctions.particles.size();
+  std::vector<double> lambda(P.size(), -1.0);  // per-particle step factors (-1: not yet set)
   int stableIterations = 0;
   bool populationChanged = true;
   const int threads = resolveThreads(ctx.threads());
 
-  auto sendPreview = [&](int iteration, bool force) {
-    if (!ctx.wantsPreview()) return;
-    auto snap = std::make_shared<PreviewSnapshot>();
-    snap->stage = "ParticleSystem";
-    snap->kind = "points";
-    snap->iteration = iteration;
-    std::unordered_map<uint32_t, int32_t> groupOf;
-    for (const auto& p : P) {
-      const uint32_t key = (uint32_t(p.a) << 16) | p.b;
-      auto it = groupOf.find(key);
-      if (it == groupOf.end()) {
-        it = groupOf.emplace(key, int32_t(snap->groups.size())).first;
-        snap->groups.emplace_back(p.a == 0 ? kExteriorLabel : vol.userLabel[p.a], vol.userLabel[p.b]);
-      }
-      const Vec3 x = input.canonicalToPhysical(S.canonical(p.local));
-      snap->points.push_back({float(x[0]), float(x[1]), float(x[2])});
-      snap->pointGroup.push_back(it->second);
-    }
-    ctx.preview(snap, force);
-  };
-
   int iteration = 0;
   for (; iteration < params.maxIterations; ++iteration) {
     ctx.checkCancel();
-    const size_t n = P.size();
-    std::vector<Vec3> pos(n), nrm(n);
-    std::vector<double> h(n);
-    double hMax = S.smin;
-    for (size_t i = 0; i < n; ++i) {
-      pos[i] = S.canonical(P[i].local);
-      h[i] = sizing(pos[i]);
-      hMax = std::max(hMax, h[i]);
-      nrm[i] = P[i].junction < 0 ? S.normal(P[i].a, P[i].b, P[i].local) : Vec3{0, 0, 0};
-    }
-    // Cells of the median interaction radius: with an adaptive field hMax can be many times the
-    // typical h, and cells that large would hold hundreds of particles each.
-    Grid grid;
-    grid.cell = k * median(h, hMax);
-    grid.build(pos);
-
-    auto neighbours = [&](size_t i, std::vector<std::pair<uint32_t, double>>& out) {
-      out.clear();
-      const Particle& p = P[i];
-      grid.forEachNear(pos[i], k * h[i], [&](uint32_t j) {
-        if (j == i) return;
-        const Particle& q = P[j];
-        if (q.junction >= 0) {
-          if (!junctions.particles[size_t(q.junction)].contains(p.a, p.b)) return;
-        } else if (q.a != p.a || q.b != p.b || dot(nrm[i], nrm[j]) < 0.5) {
-          return;
-        }
-        const double s = k * std::min(h[i], h[j]);
-        const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
-        if (dot(d, d) < s * s) out.emplace_back(j, s);
-      });
-    };
-    auto energyAt = [&](const Vec3& x, const std::vector<std::pair<uint32_t, double>>& nb) {
-      double e = 0;
-      for (const auto& [j, s] : nb) {
-        const Vec3 d{x[0] - pos[j][0], x[1] - pos[j][1], x[2] - pos[j][2]};
-        e += kernel(std::sqrt(dot(d, d)), s);
-      }
-      return e;
-    };
-
-    std::vector<Vec3> next(n);
-    std::vector<double> moved(n, 0.0), energy(n, 0.0), nearest(n, 1e300);
-    std::vector<char> lost(n, 0);
-    std::vector<int32_t> nearestId(n, -1);
-    parallelFor(n, threads, [&](size_t b, size_t e, int) {
-      std::vector<std::pair<uint32_t, double>> nb;
-      for (size_t i = b; i < e; ++i) {
-        next[i] = P[i].local;
-        if (P[i].junction >= 0) continue;
-        neighbours(i, nb);
-        for (const auto& [j, s] : nb) {
-          const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
-          const double r = std::sqrt(dot(d, d));
-          if (r < nearest[i]) {
-            nearest[i] = r;
-            nearestId[i] = int32_t(j);
-          }
-        }
-        const double e0 = energyAt(pos[i], nb);
-        energy[i] = e0;
-        Vec3 g{0, 0, 0};
-        double stiffness = 0;
-        for (const auto& [j, s] : nb) {
-          const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
-          const double r = std::max(std::sqrt(dot(d, d)), 1e-12);
-          const double dE = kernelDerivative(r, s);
-          for (int a = 0; a < 3; ++a) g[a] += dE * d[a] / r;
-          stiffness += kernelSecondDerivative(r, s);
-        }
-        const double gn = dot(g, nrm[i]);
-        for (int a = 0; a < 3; ++a) g[a] -= gn * nrm[i][a];
-        const double gl = std::sqrt(dot(g, g));
-        if (gl < 1e-12 || stiffness <= 0) continue;
-        // Damped Newton step along the tangential force: -f g / H with H the summed radial
-        // stiffness of the kernel; f adapts per particle (x1.25 on success, x0.5 on failure)
-        // within [0.05, 0.5], which keeps the simultaneous (Jacobi) update from oscillating.
-        double& f = lambda[i];
-        if (f <= 0) f = 0.25;
-        for (int attempt = 0; attempt < 3; ++attempt) {
-          double step = f * gl / stiffness;
-          // At most a quarter of the distance to the nearest neighbour: two particles moving
-          // towards each other in the same (Jacobi) iteration can then never collide.
-          const double cap = std::min(maxStepFactor * h[i], std::max(0.25 * nearest[i], 0.05 * h[i]));
-          const double scale = step > cap ? cap / step : 1.0;
-          const double mul = f * scale / stiffness;
-          const Vec3 c{pos[i][0] - mul * g[0], pos[i][1] - mul * g[1], pos[i][2] - mul * g[2]};
-          Vec3 l = S.toLocal(c);
-          if (!S.project(P[i].a, P[i].b, l)) {
-            f = std::max(f * 0.5, 0.05);
-            continue;
-          }
-          const Vec3 cp = S.canonical(l);
-          // The projection must land near the tangent step (not on another fold of the
-          // interface, where the neighbour list would not apply).
-          const Vec3 dp{cp[0] - c[0], cp[1] - c[1], cp[2] - c[2]};
-          const double intended = std::min(step, cap);
-          if (dot(dp, dp) > std::pow(intended + 0.05 * h[i], 2)) {
-            f = std::max(f * 0.5, 0.05);
-            continue;
-          }
-          if (energyAt(cp, nb) < e0) {
-            next[i] = l;
-            const Vec3 d{cp[0] - pos[i][0], cp[1] - pos[i][1], cp[2] - pos[i][2]};
-            moved[i] = std::sqrt(dot(d, d)) / h[i];
-            f = std::min(f * 1.25, 0.5);
-            break;
-          }
-          f = std::max(f * 0.5, 0.05);
-        }
-        // A seed that cannot be projected onto its interface at all is dropped.
-        if (iteration == 0) {
-          Vec3 check = next[i];
-          if (!S.project(P[i].a, P[i].b, check)) lost[i] = 1;
-        }
-      }
-    });
-    double maxMove = 0, total = 0;
-    for (size_t i = 0; i < n; ++i) {
-      P[i].local = next[i];
-      maxMove = std::max(maxMove, moved[i]);
-      total += energy[i];
-    }
-    // 95th percentile of the moves of the surface particles (relative to h).
-    double p95 = 0;
-    if (n > nFixed) {
-      std::vector<double> m(moved.begin() + long(nFixed), moved.end());
-      const size_t q = size_t(0.95 * double(m.size() - 1));
-      std::nth_element(m.begin(), m.begin() + long(q), m.end());
-      p95 = m[q];
-    }
-    res.finalEnergy = total;
-    double minNearest = 1e300, maxEnergy = 0;
-    for (size_t i = nFixed; i < n; ++i) {
-      minNearest = std::min(minNearest, nearest[i] / h[i]);
-      maxEnergy = std::max(maxEnergy, energy[i]);
-    }
-    ctx.debug("ParticleSystem iteration " + std::to_string(iteration) + ": min nearest/h " +
-              std::to_string(minNearest) + ", max particle energy " + std::to_string(maxEnergy));
-    ctx.debug("ParticleSystem iteration " + std::to_string(iteration) + ": " + std::to_string(n) +
-              " particles, energy " + std::to_string(total) + ", moves/h p95 " +
-              std::to_string(p95) + " max " + std::to_string(maxMove));
-    res.finalMaxMove = maxMove;
-    res.finalMoveP95 = p95;
+    // Forces, moves and projection.
+    JacobiStep step(P, junctions, S, sizing, params.kernelScale, params.maxStepFactor);
+    step.run(iteration, lambda, threads);
+    for (size_t i = 0; i < P.size(); ++i) P[i].local = step.next[i];
+    const double p95 = recordIteration(step, nFixed, iteration, res, ctx);
     stableIterations = p95 < params.tolerance ? stableIterations + 1 : 0;
 
-    // Population control (sequential, deterministic).
-    const bool populationStep = (iteration + 1) % params.populationInterval == 0 &&
-                                iteration + 1 < params.maxIterations;
-    // Near-duplicates (closer than a tenth of the spacing) are thinned at every iteration.
-    bool duplicates = false;
-    for (size_t i = nFixed; i < n && !duplicates; ++i) duplicates = nearest[i] < 0.1 * h[i];
-    if (populationStep || duplicates ||
-        std::any_of(lost.begin(), lost.end(), [](char c) { return c != 0; })) {
-      std::vector<char> remove(n, 0);
-      std::vector<Particle> added;
-      for (size_t i = nFixed; i < n; ++i) {
-        if (lost[i]) {
-          remove[i] = 1;
-          ++res.lost;
-          continue;
-        }
-        const int32_t j = nearestId[i];
-        const double minSpacing = populationStep ? params.minSpacingFactor : 0.1;
-        if (j >= 0 && nearest[i] < minSpacing * h[i] &&
-            (P[size_t(j)].junction >= 0 || size_t(j) < i) && !remove[size_t(j)]) {
-          remove[i] = 1;
-          ++res.removed;
-          continue;
-        }
-        if (!populationStep) continue;
-        const double ideal = 6.0 * kernel(h[i], k * h[i]);
-        if (energy[i] > params.deleteEnergyFactor * ideal) {
-          // Crowded: remove it unless a neighbour is already being removed in this step.
-          bool neighbourRemoved = false;
-          grid.forEachNear(pos[i], k * h[i], [&](uint32_t j) {
-            if (j != i && remove[j] && P[j].a == P[i].a && P[j].b == P[i].b) {
-              const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
-              if (dot(d, d) < k * k * h[i] * h[i]) neighbourRemoved = true;
-            }
-          });
-          if (!neighbourRemoved) {
-            remove[i] = 1;
-            ++res.removed;
-            continue;
-          }
-        }
-        if (energy[i] < params.splitEnergyFactor * ideal) {
-          // split: new particle half a spacing away in a seeded tangent direction
-          const Vec3& nn = nrm[i];
-          Vec3 t1 = std::fabs(nn[0]) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
-          const double d1 = dot(t1, nn);
-          for (int a = 0; a < 3; ++a) t1[a] -= d1 * nn[a];
-          const double l1 = std::sqrt(dot(t1, t1));
-          for (auto& v : t1) v /= l1;
-          const Vec3 t2{nn[1] * t1[2] - nn[2] * t1[1], nn[2] * t1[0] - nn[0] * t1[2],
-                        nn[0] * t1[1] - nn[1] * t1[0]};
-          const double ang = double(mix64(params.seed ^ (uint64_t(i) << 20) ^ uint64_t(iteration)) % 6283) / 1000.0;
-          const Vec3 c = S.canonical(P[i].local);
-          Vec3 l = S.toLocal({c[0] + 0.5 * h[i] * (std::cos(ang) * t1[0] + std::sin(ang) * t2[0]),
-                              c[1] + 0.5 * h[i] * (std::cos(ang) * t1[1] + std::sin(ang) * t2[1]),
-                              c[2] + 0.5 * h[i] * (std::cos(ang) * t1[2] + std::sin(ang) * t2[2])});
-          if (S.project(P[i].a, P[i].b, l)) {
-            // Keep the child only where there is room (existing and new particles).
-            const Vec3 cc = S.canonical(l);
-            const double room = params.minSpacingFactor * h[i];
-            bool free = true;
-            grid.forEachNear(cc, room, [&](uint32_t j) {
-              const Vec3 d{cc[0] - pos[j][0], cc[1] - pos[j][1], cc[2] - pos[j][2]};
-              if (dot(d, d) < room * room) free = false;
-            });
-            for (const auto& q : added) {
-              const Vec3 cq = S.canonical(q.local);
-              const Vec3 d{cc[0] - cq[0], cc[1] - cq[1], cc[2] - cq[2]};
-              if (dot(d, d) < room * room) free = false;
-            }
-            if (free) {
-              Particle q = P[i];
-              q.local = l;
-              added.push_back(q);
-            }
-          }
-        }
-      }
-      std::vector<Particle> kept;
-      std::vector<double> keptLambda;
-      kept.reserve(n + added.size());
-      for (size_t i = 0; i < n; ++i)
-        if (!remove[i]) {
-          kept.push_back(P[i]);
-          keptLambda.push_back(lambda[i]);
-        }
-      res.added += added.size();
-      for (const auto& q : added) {
-        kept.push_back(q);
-        keptLambda.push_back(-1.0);
-      }
-      if (populationStep) populationChanged = kept.size() != n || !added.empty();
-      P.swap(kept);
-      lambda.swap(keptLambda);
+    // Population control: split and delete.
+    const bool populationStep =
+        (iteration + 1) % params.populationInterval == 0 && iteration + 1 < params.maxIterations;
+    PopulationControl population(step, nFixed, iteration, populationStep, params);
+    if (population.needed()) {
+      const bool changed = population.apply(P, lambda, res);
+      if (populationStep) populationChanged = changed;
     }
     ctx.progress(double(iteration + 1) / params.maxIterations);
-    sendPreview(iteration, false);
+    sendPreview(ctx, P, S, input, iteration, false);
+
+    // Convergence: small moves for 3 iterations and no change in the last population step.
     if (stableIterations >= 3 && !populationChanged) {
       res.converged = true;
       ++iteration;
@@ -485,39 +628,8 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
     }
   }
   res.iterations = iteration;
-
-  // Spacing statistics (nearest neighbour on the same interface / h).
-  {
-    const size_t n = P.size();
-    std::vector<Vec3> pos(n);
-    std::vector<double> hs(n);
-    double hMax = S.smin;
-    for (size_t i = 0; i < n; ++i) {
-      pos[i] = S.canonical(P[i].local);
-      hs[i] = sizing(pos[i]);
-      hMax = std::max(hMax, hs[i]);
-    }
-    Grid grid;
-    grid.cell = 2 * median(hs, hMax);
-    grid.build(pos);
-    double sum = 0;
-    size_t count = 0;
-    for (size_t i = nFixed; i < n; ++i) {
-      const double h = hs[i];
-      double best = 1e300;
-      grid.forEachNear(pos[i], 2 * h, [&](uint32_t j) {
-        if (j == i || P[j].junction >= 0 || P[j].a != P[i].a || P[j].b != P[i].b) return;
-        const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
-        best = std::min(best, std::sqrt(dot(d, d)));
-      });
-      if (best < 1e299) {
-        sum += best / h;
-        ++count;
-      }
-    }
-    res.meanSpacingRatio = count ? sum / double(count) : 0;
-  }
-  sendPreview(iteration, true);
+  res.meanSpacingRatio = meanSpacingRatio(P, S, sizing, nFixed);
+  sendPreview(ctx, P, S, input, iteration, true);
   res.particles = std::move(P);
   return res;
 }
