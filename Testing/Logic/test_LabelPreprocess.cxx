@@ -230,3 +230,56 @@ TEST(LabelPreprocess, CancelStopsTheStage) {
   ctx.cancel();
   expectError(ErrorCode::Canceled, [&] { preprocessLabels(test::ballsInShell(12), {}, ctx); });
 }
+
+// An excluded material merged into its neighbours: its voxels go to the most common kept
+// neighbour (here the middle slab 7 gives its voxels to 1000 and 42, split down the middle), and
+// a warning names the materials that received them.
+TEST(LabelPreprocess, ExcludedMaterialMergesIntoItsNeighbours) {
+  const LabelVolume v = slabsInABox();
+  RunContext ctx;
+  LabelPreprocessParameters p;
+  p.excluded[7] = Exclusion::MergeIntoNeighbour;
+  const PreprocessedVolume pv = preprocessLabels(v, p, ctx);
+  EXPECT_EQ(pv.userLabel, (std::vector<int32_t>{0, 42, 1000}));
+  EXPECT_EQ(pv.excludedLabels, std::vector<int32_t>{7});
+  EXPECT_TRUE(pv.droppedLabels.empty());
+  // Every voxel of 7 now belongs to 1000 or 42: the labelled voxels are as many as before.
+  EXPECT_EQ(pv.voxelCounts[1] + pv.voxelCounts[2],
+            countLabel(v, 1000) + countLabel(v, 7) + countLabel(v, 42));
+  EXPECT_GT(pv.voxelCounts[1], countLabel(v, 42));
+  EXPECT_GT(pv.voxelCounts[2], countLabel(v, 1000));
+  bool named = false;
+  for (const auto& w : ctx.warnings())
+    named |= w.find("Label 7") != std::string::npos && w.find("label 1000") != std::string::npos &&
+             w.find("tendon (label 42)") != std::string::npos;
+  EXPECT_TRUE(named) << "the warning must name where the voxels went";
+}
+
+// An excluded material as background: a cut between the two other slabs; the crop ignores it.
+TEST(LabelPreprocess, ExcludedMaterialAsBackgroundLeavesACut) {
+  LabelVolume v = slabsInABox();
+  RunContext ctx;
+  LabelPreprocessParameters p;
+  p.excluded[42] = Exclusion::Background;  // the last slab: the labelled box shrinks
+  p.excluded[5] = Exclusion::Background;   // not in the map: a warning, nothing else
+  const PreprocessedVolume pv = preprocessLabels(v, p, ctx);
+  EXPECT_EQ(pv.userLabel, (std::vector<int32_t>{0, 7, 1000}));
+  EXPECT_EQ(pv.excludedLabels, std::vector<int32_t>{42});
+  EXPECT_EQ(pv.voxelCounts[1], countLabel(v, 7));
+  EXPECT_EQ(pv.voxelCounts[2], countLabel(v, 1000));
+  EXPECT_EQ(pv.dims[0], 10 + 2 * p.margin);  // x from 5 to 14 only
+  size_t noSuchLabel = 0;
+  for (const auto& w : ctx.warnings()) noSuchLabel += w.find("no such label") != std::string::npos;
+  EXPECT_EQ(noSuchLabel, 1u);
+  // Everything excluded: a clear error naming the exclusion.
+  p.excluded[7] = Exclusion::Background;
+  p.excluded[1000] = Exclusion::MergeIntoNeighbour;
+  RunContext ctx2;
+  try {
+    preprocessLabels(v, p, ctx2);
+    FAIL() << "meshed a label map whose every material is excluded";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.status().code(), ErrorCode::EmptyLabelMap);
+    EXPECT_NE(e.status().message().find("excluded"), std::string::npos);
+  }
+}

@@ -36,12 +36,13 @@ void warnAboutExclusions(const LabelVolume& input, const LabelPreprocessParamete
 }
 
 /// Fills the voxels marked `dropped` from their kept 6-neighbours (the most common; ties prefer a
-/// material over background, then the smaller id), layer by layer. Returns, per user label of
-/// the dropped voxels, how many voxels each compact label received.
-std::map<int32_t, std::map<uint16_t, size_t>> fillFromNeighbours(PreprocessedVolume& out,
-                                                                 uint16_t dropped,
-                                                                 std::vector<size_t> voxels,
-                                                                 std::vector<int32_t> from) {
+/// material over background, then the smaller id), layer by layer. Voxels of a label in
+/// `materialsOnly` (merged exclusions) take materials only, never background, unless no material
+/// can reach them. Returns, per user label of the dropped voxels, how many voxels each compact
+/// label received.
+std::map<int32_t, std::map<uint16_t, size_t>> fillFromNeighbours(
+    PreprocessedVolume& out, uint16_t dropped, std::vector<size_t> voxels,
+    std::vector<int32_t> from, const std::set<int32_t>& materialsOnly) {
   std::map<int32_t, std::map<uint16_t, size_t>> received;
   const long sx = 1, sy = out.dims[0], sz = long(out.dims[0]) * out.dims[1];
   while (!voxels.empty()) {
@@ -52,9 +53,10 @@ std::map<int32_t, std::map<uint16_t, size_t>> fillFromNeighbours(PreprocessedVol
       const size_t idx = voxels[v];
       uint16_t cand[6];
       int nc = 0;
+      const bool noBackground = materialsOnly.count(from[v]) > 0;
       for (long d : {sx, -sx, sy, -sy, sz, -sz}) {
         const uint16_t l = out.labels[size_t(long(idx) + d)];  // margin keeps us inside
-        if (l != dropped) cand[nc++] = l;
+        if (l != dropped && !(noBackground && l == 0)) cand[nc++] = l;
       }
       if (nc == 0) {
         still.push_back(idx);
@@ -261,7 +263,8 @@ PreprocessedVolume preprocessLabels(const LabelVolume& input,
       }
   ctx.progress(0.6);
 
-  const auto received = fillFromNeighbours(out, kDropped, droppedVoxels, droppedFrom);
+  const auto received = fillFromNeighbours(out, kDropped, droppedVoxels, droppedFrom,
+                                           std::set<int32_t>(merged.begin(), merged.end()));
   for (int32_t m : merged) warnMerged(input, out, m, received, ctx);
 
   out.voxelCounts.assign(out.userLabel.size(), 0);
