@@ -296,13 +296,14 @@ int runQuality(const std::string& meshPath, const std::string& labelsPath,
                        "--raster needs --labels: the mesh is sampled on that label map's voxel grid"));
   auto mesh = readMesh(meshPath);
   if (!mesh) return fail(mesh.status());
-  const QualityReport q = computeQuality(mesh.value());
+  RunContext ctx;
+  const QualityReport q = computeQuality(mesh.value(), ctx);
   FidelityReport fr;
   const bool withFidelity = !labelsPath.empty();
   if (withFidelity) {
     auto labels = readLabelMap(labelsPath);
     if (!labels) return fail(labels.status());
-    fr = computeFidelity(labels.value(), mesh.value());
+    fr = computeFidelity(labels.value(), mesh.value(), ctx);
     if (!rasterPath.empty())
       if (Status st = writeLabelMap(rasterizeMesh(labels.value(), mesh.value()), rasterPath); !st)
         return fail(st);
@@ -355,7 +356,8 @@ int runMedialAxis(const std::string& input, const std::string& output, const std
       std::fprintf(stderr, "label %ld: %zu medial voxels (pruning %s, gamma %g)\n", label,
                    axis.voxels.size(), medialAxisPruningName(mp.pruning), mp.gamma);
     } else {
-      const LabelMedialAxes axes = computeAllMedialAxes(volume.value(), mp);
+      RunContext ctx;
+      const LabelMedialAxes axes = computeAllMedialAxes(volume.value(), mp, ctx);
       out.labels = axes.labelImage(-1);
       std::fprintf(stderr, "%zu medial voxels over %zu labels (pruning %s, gamma %g)\n",
                    axes.voxelCount(), axes.labels.size(), medialAxisPruningName(mp.pruning), mp.gamma);

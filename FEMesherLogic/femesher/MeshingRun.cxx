@@ -155,7 +155,7 @@ void MeshingRun::indicatorFunctions() {
 void MeshingRun::medialAxis() {
   SizingParameters sp = params_.sizing;
   sp.threads = ctx_.threads();
-  axes_ = computeAllMedialAxes(workingLabelMap(state_.grid), medialAxisParameters(sp), &ctx_);
+  axes_ = computeAllMedialAxes(workingLabelMap(state_.grid), medialAxisParameters(sp), ctx_);
   state_.medialVoxels = axes_.voxelCount();
 }
 
@@ -163,10 +163,9 @@ void MeshingRun::sizingField() {
   SizingParameters sp = params_.sizing;
   sp.threads = ctx_.threads();
   sp.targetEdgeLength = state_.edgeLength;  // the automatic bounds follow the run's edge length
-  auto sf = computeSizingField(workingLabelMap(state_.grid), axes_, sp, ctx_);
-  if (!sf) throw Error(sf.status().code(), sf.status().message());
+  auto field = std::make_shared<const SizingField>(
+      computeSizingField(workingLabelMap(state_.grid), axes_, sp, ctx_));
   axes_ = LabelMedialAxes{};
-  auto field = std::make_shared<const SizingField>(std::move(sf.value()));
   state_.sizingField = field;
   const WorkingGrid grid = state_.grid;
   state_.sizing = [field, grid](const Vec3& c) { return double(field->at(grid.canonicalToGridMm(c))); };
@@ -321,10 +320,10 @@ void MeshingRun::toPhysical() {
                 ") is missing from the mesh.");
 }
 
-void MeshingRun::quality() { state_.quality = computeQuality(state_.mesh, &ctx_); }
+void MeshingRun::quality() { state_.quality = computeQuality(state_.mesh, ctx_); }
 
 void MeshingRun::fidelity() {
-  state_.fidelity = computeFidelity(input_, state_.mesh, &ctx_);
+  state_.fidelity = computeFidelity(input_, state_.mesh, ctx_);
   state_.hasFidelity = true;
 }
 

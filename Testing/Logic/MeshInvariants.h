@@ -3,6 +3,7 @@
 // Invariant checks shared by the meshing tests: conformity, orientation, labels, extent,
 // material volumes, interface triangles; and the expected-error check.
 #include <femesher/Status.h>
+#include <femesher/RunContext.h>
 #include <femesher/Types.h>
 
 #include <gtest/gtest.h>
@@ -134,6 +135,12 @@ std::string expectError(ErrorCode code, Fn&& fn) {
   }
   ADD_FAILURE() << "expected the error " << errorCodeName(code);
   return {};
+}
+
+/// A run context for calling a stage outside a run (no callbacks, all threads).
+inline RunContext& quietContext() {
+  static RunContext ctx;
+  return ctx;
 }
 
 }  // namespace femesher::testing

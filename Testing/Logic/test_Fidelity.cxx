@@ -17,6 +17,7 @@
 #include <set>
 
 using namespace femesher;
+using namespace femesher::testing;
 
 namespace {
 
@@ -117,7 +118,7 @@ TEST(Fidelity, ExactVoxelMeshIsPerfect) {
   femesher::testing::expectConformal(m);
   RunContext ctx;
   ctx.setThreads(2);
-  const FidelityReport r = computeFidelity(v, m, &ctx);
+  const FidelityReport r = computeFidelity(v, m, ctx);
   ASSERT_EQ(r.materials.size(), 3u);
   EXPECT_TRUE(r.missingLabels.empty());
   EXPECT_NEAR(r.voxelSize, 0.7, 1e-15);
@@ -138,7 +139,7 @@ TEST(Fidelity, ExactVoxelMeshIsPerfect) {
   // Single-threaded gives the same result.
   RunContext one;
   one.setThreads(1);
-  const FidelityReport r1 = computeFidelity(v, m, &one);
+  const FidelityReport r1 = computeFidelity(v, m, one);
   for (size_t k = 0; k < r.materials.size(); ++k)
     EXPECT_EQ(r.materials[k].meshVoxels, r1.materials[k].meshVoxels);
 }
@@ -148,7 +149,7 @@ TEST(Fidelity, HalfVoxelShiftLowersDiceAndGivesHalfVoxelDistance) {
   // Shift by half a voxel along index axis 0 (the smallest spacing): every voxel centre lies on
   // a cube face; the tie rule gives it to exactly one cube, the one of voxel (i-1, j, k).
   const TetMesh m = voxelMesh(v, {0.5, 0, 0});
-  const FidelityReport r = computeFidelity(v, m);
+  const FidelityReport r = computeFidelity(v, m, quietContext());
   const auto expected = diceOfShiftByOne(v);
   ASSERT_EQ(r.materials.size(), 3u);
   for (const auto& f : r.materials) {
@@ -168,7 +169,7 @@ TEST(Fidelity, HalfVoxelShiftLowersDiceAndGivesHalfVoxelDistance) {
 
   // A shift of 0.25 voxel along axis 1 keeps every centre inside its own cube (Dice 1) but the
   // surfaces move by 0.25 * 1.1 / 0.7 voxels of the smallest spacing.
-  const FidelityReport q = computeFidelity(v, voxelMesh(v, {0, 0.25, 0}));
+  const FidelityReport q = computeFidelity(v, voxelMesh(v, {0, 0.25, 0}), quietContext());
   for (const auto& f : q.materials) EXPECT_DOUBLE_EQ(f.dice, 1.0);
   EXPECT_NEAR(q.meshToLabels.max, 0.25 * 1.1 / 0.7, 1e-6);
   EXPECT_NEAR(q.labelsToMesh.max, 0.25 * 1.1 / 0.7, 1e-6);
@@ -177,7 +178,7 @@ TEST(Fidelity, HalfVoxelShiftLowersDiceAndGivesHalfVoxelDistance) {
 TEST(Fidelity, MissingLabelIsListed) {
   const LabelVolume v = threeLabels();
   const TetMesh m = voxelMesh(v, {0, 0, 0}, {9});
-  const FidelityReport r = computeFidelity(v, m);
+  const FidelityReport r = computeFidelity(v, m, quietContext());
   ASSERT_EQ(r.missingLabels.size(), 1u);
   EXPECT_EQ(r.missingLabels[0], 9);
   ASSERT_NE(find(r, 9), nullptr);
@@ -202,7 +203,7 @@ TEST(Fidelity, LabelMapWithoutBackground) {
       for (int i = 0; i < 5; ++i) v.labels[v.index(i, j, k)] = i < 2 ? 1 : (j < 2 ? 2 : 4);
   ASSERT_TRUE(v.hasNoBackground());
   const TetMesh m = voxelMesh(v);
-  const FidelityReport r = computeFidelity(v, m);
+  const FidelityReport r = computeFidelity(v, m, quietContext());
   ASSERT_EQ(r.materials.size(), 3u);
   for (const auto& f : r.materials) {
     EXPECT_DOUBLE_EQ(f.dice, 1.0);
@@ -211,7 +212,7 @@ TEST(Fidelity, LabelMapWithoutBackground) {
   EXPECT_LT(r.meshToLabels.max, 1e-6);
   EXPECT_LT(r.labelsToMesh.max, 1e-6);
   // Shifted: voxels of the first column are not covered at all and count against label 1.
-  const FidelityReport s = computeFidelity(v, voxelMesh(v, {0.5, 0, 0}));
+  const FidelityReport s = computeFidelity(v, voxelMesh(v, {0.5, 0, 0}), quietContext());
   const auto expected = diceOfShiftByOne(v);
   for (const auto& f : s.materials) EXPECT_NEAR(f.dice, expected.at(f.label), 1e-12) << f.label;
 }
@@ -219,7 +220,7 @@ TEST(Fidelity, LabelMapWithoutBackground) {
 TEST(Fidelity, MeshFarFromLabelsUsesTheFallbackSearch) {
   // A mesh moved 20 voxels away: the ring search gives up and the kd-tree answers.
   const LabelVolume v = threeLabels();
-  const FidelityReport r = computeFidelity(v, voxelMesh(v, {20, 0, 0}));
+  const FidelityReport r = computeFidelity(v, voxelMesh(v, {20, 0, 0}), quietContext());
   for (const auto& f : r.materials) EXPECT_EQ(f.dice, 0.0);
   EXPECT_GT(r.meshToLabels.mean, 5.0);
   EXPECT_GT(r.meshToLabels.max, 19.0);
@@ -237,7 +238,7 @@ TEST(Fidelity, MickeyVoxelMesh) {
   }
   const LabelVolume& v = lv.value();
   const TetMesh m = voxelMesh(v);
-  const FidelityReport r = computeFidelity(v, m);
+  const FidelityReport r = computeFidelity(v, m, quietContext());
   EXPECT_FALSE(r.materials.empty());
   for (const auto& f : r.materials) {
     EXPECT_DOUBLE_EQ(f.dice, 1.0) << f.label;
@@ -262,7 +263,7 @@ TEST(Fidelity, LargeVolumeBlockMesh) {
   RunContext ctx;
   ctx.setThreads(2);
   const auto t0 = std::chrono::steady_clock::now();
-  const FidelityReport r = computeFidelity(v, m, &ctx);
+  const FidelityReport r = computeFidelity(v, m, ctx);
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("fidelity: %zu voxels, %zu tets, %zu+%zu distance samples: %.2f s (2 threads)\n",
               v.voxelCount(), m.tets.size(), r.meshToLabels.samples, r.labelsToMesh.samples, s);
@@ -276,8 +277,8 @@ TEST(Fidelity, RejectsInconsistentInput) {
   LabelVolume v = threeLabels();
   TetMesh m = voxelMesh(v);
   m.tetLabels.pop_back();
-  EXPECT_THROW(computeFidelity(v, m), Error);
+  EXPECT_THROW(computeFidelity(v, m, quietContext()), Error);
   m = voxelMesh(v);
   v.labels.pop_back();
-  EXPECT_THROW(computeFidelity(v, m), Error);
+  EXPECT_THROW(computeFidelity(v, m, quietContext()), Error);
 }

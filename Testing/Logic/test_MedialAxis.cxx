@@ -13,7 +13,10 @@
 #include <limits>
 #include <set>
 
+#include "MeshInvariants.h"
+
 using namespace femesher;
+using namespace femesher::testing;
 
 namespace {
 
@@ -353,7 +356,7 @@ TEST(MedialAxis, AllLabelsIncludingBackground) {
         if ((i - 9) * (i - 9) + (j - 9) * (j - 9) + (k - 8) * (k - 8) <= 9) l = 1000;  // inner ball
         vol.labels[vol.index(i, j, k)] = l;
       }
-  const LabelMedialAxes all = computeAllMedialAxes(vol, MedialAxisParameters{});
+  const LabelMedialAxes all = computeAllMedialAxes(vol, MedialAxisParameters{}, quietContext());
   ASSERT_EQ(all.labels, (std::vector<int32_t>{0, 7, 1000}));
   size_t unionCount = 0;
   for (uint8_t b : all.unionMask) unionCount += b;
@@ -370,7 +373,7 @@ TEST(MedialAxis, AllLabelsIncludingBackground) {
   EXPECT_TRUE(computeLabelMedialAxis(vol, 55, {}).voxels.empty());  // absent label
   MedialAxisParameters bad;
   bad.gamma = -1;
-  EXPECT_THROW(computeAllMedialAxes(vol, bad), Error);
+  EXPECT_THROW(computeAllMedialAxes(vol, bad, quietContext()), Error);
   MedialAxisPruning p;
   EXPECT_TRUE(parseMedialAxisPruning("sqrt", p));
   EXPECT_EQ(p, MedialAxisPruning::SquareRoot);

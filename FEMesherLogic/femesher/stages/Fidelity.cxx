@@ -629,7 +629,8 @@ DistanceStats labelsToMeshDistances(const LabelVolume& labels, const BoundaryFac
 
 }  // namespace
 
-FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh, RunContext* ctx) {
+FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh, RunContext& context) {
+  RunContext* ctx = &context;
   const std::string where = labels.sourcePath.empty() ? "the label map" : labels.sourcePath;
   validateInputs(labels, mesh, where);
   FidelityReport rep;

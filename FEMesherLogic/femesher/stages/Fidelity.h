@@ -47,8 +47,7 @@ struct FidelityReport {
 };
 
 /// `labels` is the input label map (LPS geometry), `mesh` in LPS. `ctx` may be null.
-FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh,
-                               RunContext* ctx = nullptr);
+FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh, RunContext& ctx);
 
 /// The mesh sampled on the voxel centres of `grid` (same geometry): each voxel gets the label of
 /// the tet containing its centre, 0 where no tet does (the rule Dice uses). Write it next to the

@@ -253,7 +253,8 @@ MedialAxis computeLabelMedialAxis(const LabelVolume& volume, int32_t label,
 }
 
 LabelMedialAxes computeAllMedialAxes(const LabelVolume& volume, const MedialAxisParameters& params,
-                                     RunContext* ctx, double progressFrom, double progressTo) {
+                                     RunContext& context, double progressFrom, double progressTo) {
+  RunContext* ctx = &context;
   checkParameters(params);
   checkVolume(volume);
   LabelMedialAxes out;

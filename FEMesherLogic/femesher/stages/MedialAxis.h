@@ -116,7 +116,7 @@ MedialAxis computeLabelMedialAxis(const LabelVolume& volume, int32_t label,
 /// `ctx` as fractions of the current stage, from `progressFrom` to `progressTo` (the caller
 /// begins/ends the stage); cancel is checked inside the loops (throws Error(Canceled)).
 LabelMedialAxes computeAllMedialAxes(const LabelVolume& volume, const MedialAxisParameters& params,
-                                     RunContext* ctx = nullptr, double progressFrom = 0,
+                                     RunContext& ctx, double progressFrom = 0,
                                      double progressTo = 1);
 
 }  // namespace femesher

@@ -354,11 +354,11 @@ QualityReport summarizeQuality(const TetMesh& mesh, const TetQuality& q,
   return r;
 }
 
-QualityReport computeQuality(const TetMesh& mesh, RunContext* ctx,
+QualityReport computeQuality(const TetMesh& mesh, RunContext& ctx,
                              const QualityThresholds& thresholds) {
-  const TetQuality q = computeTetQuality(mesh, ctx);
+  const TetQuality q = computeTetQuality(mesh, &ctx);
   QualityReport r = summarizeQuality(mesh, q, thresholds);
-  if (ctx) ctx->progress(1.0);
+  ctx.progress(1.0);
   return r;
 }
 

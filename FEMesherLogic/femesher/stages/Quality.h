@@ -86,7 +86,7 @@ QualityReport summarizeQuality(const TetMesh& mesh, const TetQuality& q,
 TetQuality computeTetQualityVtk(const TetMesh& mesh);
 
 /// Both steps.
-QualityReport computeQuality(const TetMesh& mesh, RunContext* ctx = nullptr,
+QualityReport computeQuality(const TetMesh& mesh, RunContext& ctx,
                              const QualityThresholds& thresholds = {});
 
 /// JSON text of the report (object; used in the run report and by `femesher quality --json`).

@@ -178,79 +178,71 @@ int limitGradation(const Grid3& grid, std::vector<float>& h, double L, RunContex
   return sweeps;
 }
 
-Result<SizingField> computeSizingField(const LabelVolume& volume, const SizingParameters& params,
-                                       RunContext& ctx) {
-  try {
-    const MedialAxisParameters mp = medialAxisParameters(params);
-    double hMin = 0, hMax = 0;
-    resolveSizingBounds(params, volume, hMin, hMax);  // fail early
-    if (volume.voxelCount() == 0)
-      return Status(ErrorCode::InvalidArgument, "Sizing field: the label map has no voxels.");
-    const LabelMedialAxes axes = computeAllMedialAxes(volume, mp, &ctx, 0.0, 0.6);
-    return computeSizingField(volume, axes, params, ctx);
-  } catch (const Error& e) {
-    return e.status();
-  }
+SizingField computeSizingField(const LabelVolume& volume, const SizingParameters& params,
+                               RunContext& ctx) {
+  const MedialAxisParameters mp = medialAxisParameters(params);
+  double hMin = 0, hMax = 0;
+  resolveSizingBounds(params, volume, hMin, hMax);  // fail early
+  if (volume.voxelCount() == 0)
+    throw Error(ErrorCode::InvalidArgument, "Sizing field: the label map has no voxels.");
+  const LabelMedialAxes axes = computeAllMedialAxes(volume, mp, ctx, 0.0, 0.6);
+  return computeSizingField(volume, axes, params, ctx);
 }
 
-Result<SizingField> computeSizingField(const LabelVolume& volume, const LabelMedialAxes& axes,
-                                       const SizingParameters& params, RunContext& ctx) {
-  try {
-    SizingField field;
-    field.grid = gridOf(volume);
-    const Grid3& grid = field.grid;
-    resolveSizingBounds(params, volume, field.hMin, field.hMax);
-    const size_t n = grid.size();
-    if (n == 0) return Status(ErrorCode::InvalidArgument, "Sizing field: the label map has no voxels.");
-    if (volume.labels.size() != n || axes.unionMask.size() != n)
-      return Status(ErrorCode::InvalidArgument,
-                    "Sizing field: the label map and its medial axes do not have the same size.");
-    field.medialVoxels = axes.voxelCount();
-    ctx.progress(0.6);
-    const std::vector<float> lfs = localFeatureSize(grid, axes.unionMask, params.threads, &ctx);
-    ctx.progress(0.75);
+SizingField computeSizingField(const LabelVolume& volume, const LabelMedialAxes& axes,
+                               const SizingParameters& params, RunContext& ctx) {
+  SizingField field;
+  field.grid = gridOf(volume);
+  const Grid3& grid = field.grid;
+  resolveSizingBounds(params, volume, field.hMin, field.hMax);
+  const size_t n = grid.size();
+  if (n == 0) throw Error(ErrorCode::InvalidArgument, "Sizing field: the label map has no voxels.");
+  if (volume.labels.size() != n || axes.unionMask.size() != n)
+    throw Error(ErrorCode::InvalidArgument,
+                  "Sizing field: the label map and its medial axes do not have the same size.");
+  field.medialVoxels = axes.voxelCount();
+  ctx.progress(0.6);
+  const std::vector<float> lfs = localFeatureSize(grid, axes.unionMask, params.threads, &ctx);
+  ctx.progress(0.75);
 
-    const bool meshBorder = volume.hasNoBackground();
-    const int nx = grid.dims[0], ny = grid.dims[1], nz = grid.dims[2];
-    const float fMax = float(field.hMax);
-    field.h.assign(n, fMax);
-    std::vector<size_t> interfaceCount(size_t(nz), 0);
-    parallelFor(size_t(nz), params.threads, [&](size_t b, size_t e, int) {
-      ctx.checkCancel();
-      for (size_t kk = b; kk < e; ++kk) {
-        const int k = int(kk);
-        for (int j = 0; j < ny; ++j)
-          for (int i = 0; i < nx; ++i) {
-            const size_t v = grid.index(i, j, k);
-            const int32_t l = volume.labels[v];
-            bool isInterface = !params.interfacesOnly;
-            if (!isInterface) {
-              const bool border = i == 0 || j == 0 || k == 0 || i == nx - 1 || j == ny - 1 ||
-                                  k == nz - 1;
-              if (border && (l != 0 || meshBorder)) isInterface = true;
-              static const int d[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0},
-                                          {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
-              for (int q = 0; q < 6 && !isInterface; ++q) {
-                const int a = i + d[q][0], bb = j + d[q][1], c = k + d[q][2];
-                if (a < 0 || bb < 0 || c < 0 || a >= nx || bb >= ny || c >= nz) continue;
-                if (volume.labels[grid.index(a, bb, c)] != l) isInterface = true;
-              }
+  const bool meshBorder = volume.hasNoBackground();
+  const int nx = grid.dims[0], ny = grid.dims[1], nz = grid.dims[2];
+  const float fMax = float(field.hMax);
+  field.h.assign(n, fMax);
+  std::vector<size_t> interfaceCount(size_t(nz), 0);
+  parallelFor(size_t(nz), params.threads, [&](size_t b, size_t e, int) {
+    ctx.checkCancel();
+    for (size_t kk = b; kk < e; ++kk) {
+      const int k = int(kk);
+      for (int j = 0; j < ny; ++j)
+        for (int i = 0; i < nx; ++i) {
+          const size_t v = grid.index(i, j, k);
+          const int32_t l = volume.labels[v];
+          bool isInterface = !params.interfacesOnly;
+          if (!isInterface) {
+            const bool border = i == 0 || j == 0 || k == 0 || i == nx - 1 || j == ny - 1 ||
+                                k == nz - 1;
+            if (border && (l != 0 || meshBorder)) isInterface = true;
+            static const int d[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0},
+                                        {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+            for (int q = 0; q < 6 && !isInterface; ++q) {
+              const int a = i + d[q][0], bb = j + d[q][1], c = k + d[q][2];
+              if (a < 0 || bb < 0 || c < 0 || a >= nx || bb >= ny || c >= nz) continue;
+              if (volume.labels[grid.index(a, bb, c)] != l) isInterface = true;
             }
-            if (!isInterface) continue;
-            ++interfaceCount[kk];
-            const double h0 = params.scale * double(lfs[v]);  // +inf when no axis at all
-            field.h[v] = float(std::clamp(h0, field.hMin, field.hMax));
           }
-      }
-    });
-    for (size_t c : interfaceCount) field.interfaceVoxels += c;
-    ctx.progress(0.8);
-    limitGradation(grid, field.h, params.gradation, &ctx);
-    ctx.progress(1.0);
-    return field;
-  } catch (const Error& e) {
-    return e.status();
-  }
+          if (!isInterface) continue;
+          ++interfaceCount[kk];
+          const double h0 = params.scale * double(lfs[v]);  // +inf when no axis at all
+          field.h[v] = float(std::clamp(h0, field.hMin, field.hMax));
+        }
+    }
+  });
+  for (size_t c : interfaceCount) field.interfaceVoxels += c;
+  ctx.progress(0.8);
+  limitGradation(grid, field.h, params.gradation, &ctx);
+  ctx.progress(1.0);
+  return field;
 }
 
 }  // namespace femesher

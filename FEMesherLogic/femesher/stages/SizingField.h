@@ -96,12 +96,12 @@ int limitGradation(const Grid3& grid, std::vector<float>& h, double gradation,
 
 /// The whole stage on a label map. Progress is reported as fractions of the current stage
 /// (the caller begins/ends it); cancel is checked inside every loop.
-/// Errors: InvalidArgument (bad parameters, empty grid), Canceled.
-Result<SizingField> computeSizingField(const LabelVolume& volume, const SizingParameters& params,
-                                       RunContext& ctx);
+/// Errors (thrown as Error): InvalidArgument (bad parameters, empty grid), Canceled.
+SizingField computeSizingField(const LabelVolume& volume, const SizingParameters& params,
+                               RunContext& ctx);
 
 /// Same, from precomputed medial axes (e.g. to write both outputs of one run).
-Result<SizingField> computeSizingField(const LabelVolume& volume, const LabelMedialAxes& axes,
-                                       const SizingParameters& params, RunContext& ctx);
+SizingField computeSizingField(const LabelVolume& volume, const LabelMedialAxes& axes,
+                               const SizingParameters& params, RunContext& ctx);
 
 }  // namespace femesher

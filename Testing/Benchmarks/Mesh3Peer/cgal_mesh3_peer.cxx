@@ -225,8 +225,8 @@ int main(int argc, char** argv) {
     Status s = writeMesh(mesh, output);
     if (!s) std::fprintf(stderr, "error: %s\n", s.message().c_str());
   }
-  const QualityReport q = computeQuality(mesh);
-  const FidelityReport f = computeFidelity(in, mesh);
+  const QualityReport q = computeQuality(mesh, ctx);
+  const FidelityReport f = computeFidelity(in, mesh, ctx);
   report["tets"] = mesh.tets.size();
   report["vertices"] = mesh.points.size();
   report["criteria"] = {{"facet_distance", facetDistance}, {"facet_size", facetSize},
