@@ -47,55 +47,8 @@ class StageScope {
   Clock::time_point start_;
 };
 
-/// Order-sensitive checksum of the interface surface handed to TetGen (determinism checks).
-double surfaceChecksum(const BoundarySurface& s) {
-  uint64_t h = 1469598103934665603ull;
-  auto mix = [&](uint64_t x) {
-    h ^= x;
-    h *= 1099511628211ull;
-  };
-  for (const auto& p : s.points)
-    for (double x : p) mix(uint64_t(std::llround(x * 1e6)));
-  for (const auto& t : s.triangles)
-    for (int32_t v : t) mix(uint64_t(uint32_t(v)));
-  return double(h % 1000000007ull);
-}
-
 /// The automatic edge length: edge_length_factor x mean spacing, but never more than a quarter of
 /// the smallest side of the labelled box (tiny volumes still get a few elements across).
-/// Share of junction particles that are vertices of an edge shared by the triangles of three or
-/// more materials (i.e. the triple lines appear as mesh edges there).
-double junctionsOnTripleEdges(const BoundarySurface& s, const PreprocessedVolume& vol,
-                              const std::vector<Vec3>& particlesLocal, size_t junctionCount,
-                              RunContext& ctx) {
-  if (junctionCount == 0) return 1.0;
-  std::map<Vec3, int32_t> vid;
-  for (size_t i = 0; i < s.points.size(); ++i) vid.emplace(s.points[i], int32_t(i));
-  std::map<std::pair<int32_t, int32_t>, std::set<int>> edgeMaterials;
-  for (size_t t = 0; t < s.triangles.size(); ++t)
-    for (int e = 0; e < 3; ++e) {
-      int32_t a = s.triangles[t][e], b = s.triangles[t][(e + 1) % 3];
-      if (a > b) std::swap(a, b);
-      auto& m = edgeMaterials[{a, b}];
-      m.insert(s.trianglePairs[t].first);
-      m.insert(s.trianglePairs[t].second);
-    }
-  std::vector<size_t> best(s.points.size(), 0);
-  for (const auto& [e, m] : edgeMaterials) {
-    best[size_t(e.first)] = std::max(best[size_t(e.first)], m.size());
-    best[size_t(e.second)] = std::max(best[size_t(e.second)], m.size());
-  }
-  size_t ok = 0, notVertex = 0;
-  for (size_t j = 0; j < junctionCount && j < particlesLocal.size(); ++j) {
-    auto it = vid.find(vol.localToCanonical(particlesLocal[j]));
-    if (it == vid.end()) ++notVertex;
-    else if (best[size_t(it->second)] >= 3) ++ok;
-  }
-  ctx.debug("Junction particles: " + std::to_string(junctionCount) + ", on triple edges " +
-            std::to_string(ok) + ", not a surface vertex " + std::to_string(notVertex));
-  return double(ok) / double(junctionCount);
-}
-
 double resolvedEdgeLength(const LabelVolume& in, const MeshingParameters& p) {
   if (p.targetEdgeLength > 0) return p.targetEdgeLength;
   const double mean = (in.spacing[0] + in.spacing[1] + in.spacing[2]) / 3.0;
@@ -249,89 +202,24 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
       st.done();
     }
     // 6. Boundary mesh.
-    BoundarySurface surface;
-    LocalDelaunayResult ldt;
-    double junctionShare = 0;
-    bool ldtUsed = false;
+    InterfaceSurface interfaceSurface;
     const bool useLdt = params.surfaceMesher == "ldt";
-    double restrictedSeconds = 0, ldtSeconds = 0;
     {
       StageScope st(ctx, result.timings, "BoundaryMesh");
-      const auto boundaryStart = Clock::now();
-      const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
-      // Points on the input's box exactly on it (as buildBoundaryMesh does), so that the
-      // particles below are the surface's vertices to the bit.
-      for (Vec3& l : particles) l = field->snapToBox(l);
-      surface = buildBoundaryMesh(*field, particles, samples, ctx, params.facetDistance * smin,
-                                  &junctions, params.voxelRefinement);
-      restrictedSeconds = std::chrono::duration<double>(Clock::now() - boundaryStart).count();
-      junctionShare = junctionsOnTripleEdges(surface, vol, particles, junctions.particles.size(), ctx);
-      if (useLdt) {
-        const auto ldtStart = Clock::now();
-        // The particles as the system left them (junction particles carry their label sets).
-        std::vector<Particle> plist = ps.particles;
-        if (plist.empty()) {
-          plist = junctionParticles(junctions);
-          for (uint32_t i : samples.selected) {
-            Particle p;
-            p.local = samples.all[i].local;
-            p.a = samples.all[i].a;
-            p.b = samples.all[i].b;
-            plist.push_back(p);
-          }
-        }
-        // The local Delaunay surface is made of the particles alone: its natural neighbours and
-        // its last-resort closure come from the restricted Delaunay surface of the particles,
-        // without the points the refinement above inserted.
-        const bool refined =
-            surface.refinementPoints + surface.voxelCentrePoints + surface.junctionPoints > 0;
-        BoundarySurface particlesOnly;
-        if (refined) particlesOnly = buildBoundaryMesh(*field, particles, samples, ctx);
-        ldt = buildLocalDelaunaySurface(*field, plist, junctions, refined ? particlesOnly : surface,
-                                        ctx);
-        ldtSeconds = std::chrono::duration<double>(Clock::now() - ldtStart).count();
-        if (ldt.openEdgesAfter > 0 || ldt.selfIntersectionsAfter > 0) {
-          // An open surface would let TetGen's regions leak into each other (wrong materials), a
-          // self-intersecting one is no valid PLC: keep the restricted-Delaunay surface instead.
-          ctx.warn("The local Delaunay surface still has " + std::to_string(ldt.openEdgesAfter) +
-                   " open edges and " + std::to_string(ldt.selfIntersectionsAfter) +
-                   " self-intersections after hole filling; the restricted Delaunay surface "
-                   "(watertight) is used instead.");
-        } else {
-          if (ldt.fromRestricted > 0)
-            ctx.info("The local Delaunay surface was closed with " +
-                     std::to_string(ldt.fromRestricted) + " restricted-Delaunay triangles (" +
-                     std::to_string(ldt.restrictedComponents) + " regions; " +
-                     std::to_string(ldt.replacedTriangles) + " local triangles replaced).");
-          // Replace the restricted-Delaunay triangles by the LDT ones (used vertices only).
-          std::vector<int32_t> id(plist.size(), -1);
-          surface.points.clear();
-          surface.triangles.clear();
-          surface.trianglePairs = ldt.trianglePairs;
-          for (const auto& t : ldt.triangles) {
-            std::array<int32_t, 3> tri;
-            for (int k = 0; k < 3; ++k) {
-              int32_t& v = id[size_t(t[k])];
-              if (v < 0) {
-                v = int32_t(surface.points.size());
-                surface.points.push_back(vol.localToCanonical(plist[size_t(t[k])].local));
-              }
-              tri[k] = v;
-            }
-            surface.triangles.push_back(tri);
-          }
-          ldtUsed = true;
-        }
-      }
-      for (int m : surface.repairedLabels)
-        ctx.warn("Label " + std::to_string(vol.userLabel[m]) +
-                 " was too small for the element size; extra points were inserted to keep it.");
-      for (int m : surface.forcedLabels)
-        ctx.warn("Label " + std::to_string(vol.userLabel[m]) +
-                 " is far below the element size; the tets holding its voxels carry it (its shape "
-                 "is not resolved: lower target_edge_length to resolve it).");
+      BoundaryMeshParameters bp;
+      bp.facetDistance = params.facetDistance;
+      bp.voxelRefinement = params.voxelRefinement;
+      bp.mesher = useLdt ? SurfaceMesher::LocalDelaunay : SurfaceMesher::RestrictedDelaunay;
+      interfaceSurface =
+          buildInterfaceSurface(*field, particles, ps.particles, samples, junctions, bp, ctx);
       st.done();
     }
+    const BoundarySurface& surface = interfaceSurface.surface;
+    const LocalDelaunayResult& ldt = interfaceSurface.ldt;
+    const double junctionShare = interfaceSurface.junctionShare;
+    const bool ldtUsed = interfaceSurface.ldtUsed;
+    const double restrictedSeconds = interfaceSurface.restrictedSeconds;
+    const double ldtSeconds = interfaceSurface.ldtSeconds;
     // 5. Volume mesh.
     VolumeMeshResult vm;
     {

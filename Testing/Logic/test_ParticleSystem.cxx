@@ -83,7 +83,9 @@ StageRun runStages(const LabelVolume& v, double h, const SizingFunction& sizing)
   r.ps = runParticleSystem(*r.field, r.samples, r.junctions, sizing, v, {}, ctx);
   std::vector<Vec3> pts;
   for (const auto& p : r.ps.particles) pts.push_back(p.local);
-  r.surface = buildBoundaryMesh(*r.field, pts, r.samples, ctx);
+  BoundaryMeshParameters unrefined;
+  unrefined.facetDistance = 0;
+  r.surface = buildBoundaryMesh(*r.field, pts, r.samples, nullptr, unrefined, ctx);
   return r;
 }
 
@@ -396,8 +398,10 @@ TEST(BoundaryMesh, SameInputSameSurface) {
   std::vector<Vec3> pts;
   for (const auto& p : a.ps.particles) pts.push_back(p.local);
   RunContext ctx;
-  const BoundarySurface s1 = buildBoundaryMesh(*a.field, pts, a.samples, ctx);
-  const BoundarySurface s2 = buildBoundaryMesh(*a.field, pts, a.samples, ctx);
+  BoundaryMeshParameters unrefined;
+  unrefined.facetDistance = 0;
+  const BoundarySurface s1 = buildBoundaryMesh(*a.field, pts, a.samples, nullptr, unrefined, ctx);
+  const BoundarySurface s2 = buildBoundaryMesh(*a.field, pts, a.samples, nullptr, unrefined, ctx);
   EXPECT_EQ(s1.points, s2.points);
   EXPECT_EQ(s1.triangles, s2.triangles);
   RunContext c2;

@@ -10,6 +10,7 @@
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
 #include <femesher/VecMath.h>
+#include <femesher/stages/BoundaryMesh.h>
 #include <femesher/stages/LocalDelaunay.h>
 
 #include <algorithm>
