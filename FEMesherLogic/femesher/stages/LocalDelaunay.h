@@ -119,7 +119,8 @@ struct LocalDelaunayResult {
 };
 
 /// `restricted` must be the buildBoundaryMesh result for exactly `particles` (same order): its
-/// Delaunay triangulation gives the natural neighbours, its triangles the step-5 closure.
+/// Delaunay triangulation gives the natural neighbours, its triangles the step-5 closure (an
+/// empty result when it has no triangulation).
 LocalDelaunayResult buildLocalDelaunaySurface(const IndicatorField& field,
                                               const std::vector<Particle>& particles,
                                               const Junctions& junctions,
