@@ -23,6 +23,7 @@
 #include <map>
 #include <memory>
 #include <set>
+#include <utility>
 #include <vector>
 
 namespace femesher::testing {
@@ -67,6 +68,13 @@ inline LabelVolume fourAtAPoint() {
     if (z < 0.3) return x < 0.2 ? 1 : 2;
     return y < -0.4 ? 3 : 4;
   });
+}
+
+/// The three shapes above, by name.
+inline std::vector<std::pair<const char*, LabelVolume>> namedShapes() {
+  return {{"two spheres", twoSpheres()},
+          {"three slabs", threeSlabs()},
+          {"four at a point", fourAtAPoint()}};
 }
 
 /// The stage outputs up to the boundary mesh.
@@ -114,6 +122,26 @@ inline std::vector<Vec3> canonicalPositions(const StageRun& r) {
   std::vector<Vec3> pos;
   for (const auto& p : r.ps.particles) pos.push_back(r.vol.localToCanonical(p.local));
   return pos;
+}
+
+/// The local Delaunay surface of r's particles on r's restricted Delaunay surface (threads 0 =
+/// all).
+inline LocalDelaunayResult localDelaunay(const StageRun& r, const LocalDelaunayParameters& p = {},
+                                         int threads = 0) {
+  RunContext ctx;
+  ctx.setThreads(threads);
+  return buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, r.surface, ctx, p);
+}
+
+/// A crippled star phase (neighbours must have almost the same normal, 3 votes needed) that
+/// leaves holes, with no loop filling and no restricted closure.
+inline LocalDelaunayParameters crippledStars() {
+  LocalDelaunayParameters p;
+  p.normalAgreement = 0.97;
+  p.minVotes = 3;
+  p.fillLoops = false;
+  p.restrictedClosure = false;
+  return p;
 }
 
 /// Number of junction particles of `r` (their positions put on the input's box as

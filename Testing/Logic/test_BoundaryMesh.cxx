@@ -19,28 +19,22 @@ using namespace femesher::testing;
 
 namespace {
 
-/// A ball (1) cut by a one-voxel plate (2), with a thin oblique rod (3) through it: thin,
-/// staircased features where a coarse piecewise-linear surface misses voxel centres. 36^3,
-/// spacing (1, 1, 1.5).
-LabelVolume thinFeatures(int n = 36) {
-  LabelVolume v;
-  v.dims = {n, n, n};
+/// A ball (1) cut by a one-voxel plate (2, at x = 1.5 voxels), with a thin oblique rod (3)
+/// through it: thin, staircased features where a coarse piecewise-linear surface misses voxel
+/// centres. 36^3, spacing (1, 1, 1.5).
+LabelVolume thinFeatures() {
+  constexpr int n = 36;
+  LabelVolume v = makeVolume(n, [](double x, double y, double z) {
+    int l = 0;
+    if (x * x + y * y + z * z < 0.42 * 0.42 * n * n) l = 1;
+    if (l == 1 && x == 1.5) l = 2;
+    // Rod along (1, 1, 0.5): distance from the axis below 1.2 voxels.
+    const double t = (x + y + 0.5 * z) / 1.5;
+    const double dx = x - t * (1 / 1.5), dy = y - t * (1 / 1.5), dz = z - t * (0.5 / 1.5);
+    if (dx * dx + dy * dy + dz * dz < 1.44 && std::fabs(t) < 0.4 * n) l = 3;
+    return l;
+  });
   v.spacing = {1.0, 1.0, 1.5};
-  v.labels.assign(size_t(n) * n * n, 0);
-  const double c = (n - 1) / 2.0;
-  for (int k = 0; k < n; ++k)
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i) {
-        const double x = i - c, y = j - c, z = k - c;
-        int l = 0;
-        if (x * x + y * y + z * z < 0.42 * 0.42 * n * n) l = 1;
-        if (l == 1 && i == int(c) + 2) l = 2;
-        // Rod along (1, 1, 0.5): distance from the axis below 1.2 voxels.
-        const double t = (x + y + 0.5 * z) / 1.5;
-        const double dx = x - t * (1 / 1.5), dy = y - t * (1 / 1.5), dz = z - t * (0.5 / 1.5);
-        if (dx * dx + dy * dy + dz * dz < 1.44 && std::fabs(t) < 0.4 * n) l = 3;
-        v.labels[v.index(i, j, k)] = l;
-      }
   return v;
 }
 

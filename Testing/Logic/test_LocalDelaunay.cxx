@@ -45,15 +45,9 @@ double sidesMatchShare(const StageRun& r, const LocalDelaunayResult& ldt) {
 }  // namespace
 
 TEST(LocalDelaunay, WatertightValidAndMostlyLocalOnAnalyticShapes) {
-  const std::vector<std::pair<const char*, LabelVolume>> shapes = {
-      {"two spheres", twoSpheres()},
-      {"three slabs", threeSlabs()},
-      {"four at a point", fourAtAPoint()}};
-  for (const auto& [name, v] : shapes) {
+  for (const auto& [name, v] : namedShapes()) {
     StageRun r = runStages(v);
-    RunContext ctx;
-    const LocalDelaunayResult ldt =
-        buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, r.surface, ctx);
+    const LocalDelaunayResult ldt = localDelaunay(r);
     // Zero holes, counted by the stage and recounted independently.
     EXPECT_EQ(ldt.openEdgesAfter, 0u) << name;
     EXPECT_EQ(countOpenEdges(ldt.triangles, ldt.trianglePairs), 0u) << name;
@@ -80,13 +74,8 @@ TEST(LocalDelaunay, WatertightValidAndMostlyLocalOnAnalyticShapes) {
 
 TEST(LocalDelaunay, SameResultForAnyThreadCount) {
   StageRun r = runStages(fourAtAPoint());
-  RunContext c1, c4;
-  c1.setThreads(1);
-  c4.setThreads(4);
-  const LocalDelaunayResult a =
-      buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, r.surface, c1);
-  const LocalDelaunayResult b =
-      buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, r.surface, c4);
+  const LocalDelaunayResult a = localDelaunay(r, {}, 1);
+  const LocalDelaunayResult b = localDelaunay(r, {}, 4);
   EXPECT_EQ(a.triangles, b.triangles);
   EXPECT_EQ(a.trianglePairs, b.trianglePairs);
   EXPECT_EQ(a.fromRestricted, b.fromRestricted);

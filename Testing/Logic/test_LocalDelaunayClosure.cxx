@@ -19,20 +19,13 @@ TEST(LocalDelaunayClosure, RestrictedClosureIsALastResortThatCloses) {
   // filling): holes are left, and the closure must close them all with restricted-Delaunay
   // triangles it counts; without the closure they stay.
   StageRun r = runStages(fourAtAPoint());
-  LocalDelaunayParameters crippled;
-  crippled.normalAgreement = 0.97;
-  crippled.minVotes = 3;
-  crippled.fillLoops = false;
-  crippled.restrictedClosure = false;
-  RunContext c1, c2;
-  const LocalDelaunayResult open =
-      buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, r.surface, c1, crippled);
+  LocalDelaunayParameters crippled = crippledStars();
+  const LocalDelaunayResult open = localDelaunay(r, crippled);
   EXPECT_GT(open.openEdgesAfter, 0u);
   EXPECT_EQ(open.openEdgesAfter, countOpenEdges(open.triangles, open.trianglePairs));
   EXPECT_EQ(open.fromRestricted, 0u);
   crippled.restrictedClosure = true;
-  const LocalDelaunayResult closed =
-      buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, r.surface, c2, crippled);
+  const LocalDelaunayResult closed = localDelaunay(r, crippled);
   EXPECT_EQ(closed.openEdgesAfter, 0u);
   EXPECT_EQ(countOpenEdges(closed.triangles, closed.trianglePairs), 0u);
   EXPECT_EQ(countSelfIntersections(canonicalPositions(r), closed.triangles), 0u);

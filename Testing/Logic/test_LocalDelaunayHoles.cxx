@@ -15,17 +15,10 @@ TEST(LocalDelaunayHoles, LoopFillingClosesHolesWithoutNewVertices) {
   // A crippled star phase (neighbours must have almost the same normal, 3 votes needed) leaves
   // holes; no restricted closure, so what is left open stays open.
   StageRun r = runStages(fourAtAPoint());
-  LocalDelaunayParameters p;
-  p.normalAgreement = 0.97;
-  p.minVotes = 3;
-  p.restrictedClosure = false;
-  p.fillLoops = false;
-  RunContext c1, c2;
-  const LocalDelaunayResult before =
-      buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, r.surface, c1, p);
+  LocalDelaunayParameters p = crippledStars();
+  const LocalDelaunayResult before = localDelaunay(r, p);
   p.fillLoops = true;
-  const LocalDelaunayResult after =
-      buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, r.surface, c2, p);
+  const LocalDelaunayResult after = localDelaunay(r, p);
   std::printf("open edges %zu; %zu loops, %zu filled with %zu triangles, %zu open edges left\n",
               after.openEdgesBefore, after.holeLoops, after.holesFilled, after.fromLoopFill,
               after.openEdgesAfterFill);

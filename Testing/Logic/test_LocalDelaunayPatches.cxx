@@ -18,9 +18,7 @@ TEST(LocalDelaunayPatches, ThreeSlabsMeetOnConsistentRims) {
   // The triple line (z axis) must be an edge chain shared by all three patches between the slabs:
   // every link edge used by exactly one triangle of each of (1,2), (1,3), (2,3).
   StageRun r = runStages(threeSlabs());
-  RunContext ctx;
-  const LocalDelaunayResult ldt =
-      buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, r.surface, ctx);
+  const LocalDelaunayResult ldt = localDelaunay(r);
   EXPECT_GT(ldt.lineLinks, 8u);
   std::map<std::pair<int32_t, int32_t>, std::map<std::pair<uint16_t, uint16_t>, int>> use;
   for (size_t t = 0; t < ldt.triangles.size(); ++t)
@@ -46,11 +44,9 @@ TEST(LocalDelaunayPatches, ThreeSlabsMeetOnConsistentRims) {
 }
 
 TEST(LocalDelaunayPatches, EveryTriangleIsOnAPatchOfItsCorners) {
-  for (const LabelVolume& v : {twoSpheres(), threeSlabs(), fourAtAPoint()}) {
+  for (const auto& [name, v] : namedShapes()) {
     StageRun r = runStages(v);
-    RunContext ctx;
-    const LocalDelaunayResult ldt =
-        buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, r.surface, ctx);
+    const LocalDelaunayResult ldt = localDelaunay(r);
     ASSERT_FALSE(ldt.triangles.empty());
     size_t off = 0;
     for (size_t t = 0; t < ldt.triangles.size(); ++t) {
@@ -63,15 +59,13 @@ TEST(LocalDelaunayPatches, EveryTriangleIsOnAPatchOfItsCorners) {
         off += !on;
       }
     }
-    EXPECT_EQ(off, 0u) << "corners not on their triangle's patch";
+    EXPECT_EQ(off, 0u) << name << ": corners not on their triangle's patch";
   }
 }
 
 TEST(LocalDelaunayPatches, TripleLineLinksChainTheJunctionParticles) {
   StageRun r = runStages(threeSlabs());
-  RunContext ctx;
-  const LocalDelaunayResult ldt =
-      buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, r.surface, ctx);
+  const LocalDelaunayResult ldt = localDelaunay(r);
   size_t triple = 0, quadruple = 0;
   for (const auto& j : r.junctions.particles) (j.count == 4 ? quadruple : triple)++;
   std::printf("%zu triple and %zu quadruple junction particles: %zu links, %zu open ends\n", triple,

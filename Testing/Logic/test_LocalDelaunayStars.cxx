@@ -26,15 +26,9 @@ LocalDelaunayParameters selectionOnly() {
 }  // namespace
 
 TEST(LocalDelaunayStars, SelectionKeepsEveryPatchAnOrientedManifold) {
-  const std::vector<std::pair<const char*, LabelVolume>> shapes = {
-      {"two spheres", twoSpheres()},
-      {"three slabs", threeSlabs()},
-      {"four at a point", fourAtAPoint()}};
-  for (const auto& [name, v] : shapes) {
+  for (const auto& [name, v] : namedShapes()) {
     StageRun r = runStages(v);
-    RunContext ctx;
-    const LocalDelaunayResult ldt = buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions,
-                                                              r.surface, ctx, selectionOnly());
+    const LocalDelaunayResult ldt = localDelaunay(r, selectionOnly());
     std::printf(
         "%s: %zu star candidates, %zu taken (%zu single vote), %zu rejected, %zu open "
         "edges\n",
@@ -57,11 +51,8 @@ TEST(LocalDelaunayStars, FewerVotesNeededTakesMoreStarTriangles) {
   LocalDelaunayParameters two = selectionOnly(), three = selectionOnly();
   two.minVotes = 2;
   three.minVotes = 3;
-  RunContext c1, c2;
-  const LocalDelaunayResult a =
-      buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, r.surface, c1, two);
-  const LocalDelaunayResult b =
-      buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, r.surface, c2, three);
+  const LocalDelaunayResult a = localDelaunay(r, two);
+  const LocalDelaunayResult b = localDelaunay(r, three);
   std::printf("min votes 2: %zu stars + %zu single vote, %zu open; 3: %zu + %zu, %zu open\n",
               a.fromStars, a.fromSingleVote, a.openEdgesAfter, b.fromStars, b.fromSingleVote,
               b.openEdgesAfter);
