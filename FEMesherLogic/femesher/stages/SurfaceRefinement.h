@@ -10,8 +10,9 @@
 /// junction refinement, on a triple line) and is put exactly on the input's box when within 0.002
 /// voxel of it. A candidate closer than its exclusion radius to a vertex already there, or to a
 /// candidate taken before it, is skipped, so the sampling stays well spaced. Each refinement runs
-/// in rounds (at most 10) until nothing more goes in. Multi-threaded; the result does not depend
-/// on the thread count. Canonical frame (mm). Cancel is checked between rounds (throws the
+/// in rounds (at most 10) until nothing more goes in (the voxel-centre pass stops as soon as
+/// fewer than one in 50 of its misplaced centres can be fixed). Multi-threaded; the result does not
+/// depend on the thread count. Canonical frame (mm). Cancel is checked between rounds (throws the
 /// Canceled error of RunContext::checkCancel).
 ///
 /// Precondition for all three: the triangulation is labelled (LabelledDelaunay::label).
