@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <map>
 
 namespace femesher {
 
@@ -32,53 +31,6 @@ class StageScope {
   std::string name_;
   Clock::time_point start_;
 };
-
-/// Order-sensitive checksum of the interface surface handed to TetGen (determinism checks).
-double surfaceChecksum(const BoundarySurface& s) {
-  uint64_t h = 1469598103934665603ull;
-  auto mix = [&](uint64_t x) {
-    h ^= x;
-    h *= 1099511628211ull;
-  };
-  for (const auto& p : s.points)
-    for (double x : p) mix(uint64_t(std::llround(x * 1e6)));
-  for (const auto& t : s.triangles)
-    for (int32_t v : t) mix(uint64_t(uint32_t(v)));
-  return double(h % 1000000007ull);
-}
-
-/// Share of junction particles that are vertices of an edge shared by the triangles of three or
-/// more materials (i.e. the triple lines appear as mesh edges there).
-double junctionsOnTripleEdges(const BoundarySurface& s, const PreprocessedVolume& vol,
-                              const std::vector<Vec3>& particlesLocal, size_t junctionCount,
-                              RunContext& ctx) {
-  if (junctionCount == 0) return 1.0;
-  std::map<Vec3, int32_t> vid;
-  for (size_t i = 0; i < s.points.size(); ++i) vid.emplace(s.points[i], int32_t(i));
-  std::map<std::pair<int32_t, int32_t>, std::set<int>> edgeMaterials;
-  for (size_t t = 0; t < s.triangles.size(); ++t)
-    for (int e = 0; e < 3; ++e) {
-      int32_t a = s.triangles[t][e], b = s.triangles[t][(e + 1) % 3];
-      if (a > b) std::swap(a, b);
-      auto& m = edgeMaterials[{a, b}];
-      m.insert(s.trianglePairs[t].first);
-      m.insert(s.trianglePairs[t].second);
-    }
-  std::vector<size_t> best(s.points.size(), 0);
-  for (const auto& [e, m] : edgeMaterials) {
-    best[size_t(e.first)] = std::max(best[size_t(e.first)], m.size());
-    best[size_t(e.second)] = std::max(best[size_t(e.second)], m.size());
-  }
-  size_t ok = 0, notVertex = 0;
-  for (size_t j = 0; j < junctionCount && j < particlesLocal.size(); ++j) {
-    auto it = vid.find(vol.localToCanonical(particlesLocal[j]));
-    if (it == vid.end()) ++notVertex;
-    else if (best[size_t(it->second)] >= 3) ++ok;
-  }
-  ctx.debug("Junction particles: " + std::to_string(junctionCount) + ", on triple edges " +
-            std::to_string(ok) + ", not a surface vertex " + std::to_string(notVertex));
-  return double(ok) / double(junctionCount);
-}
 
 /// The working grid's labels as a label map (the medial axis and the sizing field read one).
 LabelVolume workingLabelMap(const PreprocessedVolume& vol) {
@@ -199,81 +151,9 @@ void MeshingRun::particleSystem() {
 }
 
 void MeshingRun::boundaryMesh() {
-  const PreprocessedVolume& vol = state_.grid;
-  const IndicatorField& field = *state_.field;
-  std::vector<Vec3>& particles = state_.particles;
-  InterfaceSurface& out = state_.surface;
-  BoundarySurface& surface = out.surface;
-  const bool useLdt = params_.boundary.mesher == SurfaceMesher::LocalDelaunay;
-  const auto boundaryStart = Clock::now();
-  const double smin = vol.minSpacing();
-  // Points on the input's box exactly on it (as buildBoundaryMesh does), so that the particles
-  // below are the surface's vertices to the bit.
-  for (Vec3& l : particles) l = field.snapToBox(l);
-  surface = buildBoundaryMesh(field, particles, state_.samples, ctx_,
-                              params_.boundary.facetDistance * smin, &state_.junctions,
-                              params_.boundary.voxelRefinement);
-  out.restrictedSeconds = secondsSince(boundaryStart);
-  out.junctionShare =
-      junctionsOnTripleEdges(surface, vol, particles, state_.junctions.particles.size(), ctx_);
-  if (useLdt) {
-    const auto ldtStart = Clock::now();
-    std::vector<Particle> plist = state_.particleSystem.particles;
-    if (plist.empty()) {
-      plist = junctionParticles(state_.junctions);
-      for (uint32_t i : state_.samples.selected) {
-        Particle p;
-        p.local = state_.samples.all[i].local;
-        p.a = state_.samples.all[i].a;
-        p.b = state_.samples.all[i].b;
-        plist.push_back(p);
-      }
-    }
-    const bool refined =
-        surface.refinementPoints + surface.voxelCentrePoints + surface.junctionPoints > 0;
-    BoundarySurface particlesOnly;
-    if (refined) particlesOnly = buildBoundaryMesh(field, particles, state_.samples, ctx_);
-    out.ldt = buildLocalDelaunaySurface(field, plist, state_.junctions,
-                                        refined ? particlesOnly : surface, ctx_);
-    out.ldtSeconds = secondsSince(ldtStart);
-    const LocalDelaunayResult& ldt = out.ldt;
-    if (ldt.openEdgesAfter > 0 || ldt.selfIntersectionsAfter > 0) {
-      ctx_.warn("The local Delaunay surface still has " + std::to_string(ldt.openEdgesAfter) +
-                " open edges and " + std::to_string(ldt.selfIntersectionsAfter) +
-                " self-intersections after hole filling; the restricted Delaunay surface "
-                "(watertight) is used instead.");
-    } else {
-      if (ldt.fromRestricted > 0)
-        ctx_.info("The local Delaunay surface was closed with " +
-                  std::to_string(ldt.fromRestricted) + " restricted-Delaunay triangles (" +
-                  std::to_string(ldt.restrictedComponents) + " regions; " +
-                  std::to_string(ldt.replacedTriangles) + " local triangles replaced).");
-      std::vector<int32_t> id(plist.size(), -1);
-      surface.points.clear();
-      surface.triangles.clear();
-      surface.trianglePairs = ldt.trianglePairs;
-      for (const auto& t : ldt.triangles) {
-        std::array<int32_t, 3> tri;
-        for (int k = 0; k < 3; ++k) {
-          int32_t& v = id[size_t(t[k])];
-          if (v < 0) {
-            v = int32_t(surface.points.size());
-            surface.points.push_back(vol.localToCanonical(plist[size_t(t[k])].local));
-          }
-          tri[k] = v;
-        }
-        surface.triangles.push_back(tri);
-      }
-      out.ldtUsed = true;
-    }
-  }
-  for (int m : surface.repairedLabels)
-    ctx_.warn("Label " + std::to_string(vol.userLabel[m]) +
-              " was too small for the element size; extra points were inserted to keep it.");
-  for (int m : surface.forcedLabels)
-    ctx_.warn("Label " + std::to_string(vol.userLabel[m]) +
-              " is far below the element size; the tets holding its voxels carry it (its shape "
-              "is not resolved: lower target_edge_length to resolve it).");
+  state_.surface = buildInterfaceSurface(*state_.field, state_.particles,
+                                         state_.particleSystem.particles, state_.samples,
+                                         state_.junctions, params_.boundary, ctx_);
 }
 
 void MeshingRun::volumeMesh() {
@@ -346,38 +226,8 @@ ReportCounts MeshingRun::reportCounts() const {
   append(femesher::reportCounts(s.junctions));
   c.emplace_back("particles", double(s.particles.size()));
   append(femesher::reportCounts(s.particleSystem));
-  const BoundarySurface& surface = s.surface.surface;
-  const LocalDelaunayResult& ldt = s.surface.ldt;
-  c.insert(c.end(), {{"delaunay_vertices", double(surface.delaunayVertices)},
-                     {"delaunay_tets", double(surface.delaunayTets)},
-                     {"surface_vertices", double(surface.points.size())},
-                     {"surface_triangles", double(surface.triangles.size())}});
+  append(femesher::reportCounts(s.surface));
   append(femesher::reportCounts(s.volumeMesh));
-  c.insert(c.end(), {{"surface_checksum", surfaceChecksum(surface)},
-                     {"junction_particles_on_triple_edges", s.surface.junctionShare},
-                     {"surface_open_edges", double(countOpenEdges(surface.triangles,
-                                                                  surface.trianglePairs))},
-                     {"surface_refinement_points", double(surface.refinementPoints)},
-                     {"voxel_centre_refinement_points", double(surface.voxelCentrePoints)},
-                     {"junction_refinement_points", double(surface.junctionPoints)},
-                     {"ldt_open_edges", double(ldt.openEdgesAfter)},
-                     {"ldt_open_edges_before_filling", double(ldt.openEdgesBefore)},
-                     {"ldt_open_edges_after_loop_fill", double(ldt.openEdgesAfterFill)},
-                     {"ldt_hole_loops", double(ldt.holeLoops)},
-                     {"ldt_holes_filled", double(ldt.holesFilled)},
-                     {"ldt_non_manifold_removed", double(ldt.nonManifoldRemoved)},
-                     {"ldt_triangles", double(ldt.triangles.size())},
-                     {"ldt_triangles_from_stars", double(ldt.fromStars)},
-                     {"ldt_triangles_from_single_vote", double(ldt.fromSingleVote)},
-                     {"ldt_triangles_from_loop_fill", double(ldt.fromLoopFill)},
-                     {"ldt_triangles_from_restricted", double(ldt.fromRestricted)},
-                     {"ldt_restricted_components", double(ldt.restrictedComponents)},
-                     {"ldt_triangles_replaced", double(ldt.replacedTriangles)},
-                     {"ldt_self_intersections_found", double(ldt.selfIntersections)},
-                     {"ldt_self_intersections", double(ldt.selfIntersectionsAfter)},
-                     {"ldt_triple_line_links", double(ldt.lineLinks)},
-                     {"ldt_triple_line_open_ends", double(ldt.lineEnds)},
-                     {"ldt_used", s.surface.ldtUsed ? 1.0 : 0.0}});
   append(femesher::reportCounts(s.optimize));
   c.insert(c.end(), {{"vertices", double(s.mesh.points.size())},
                      {"tets", double(s.mesh.tets.size())}});

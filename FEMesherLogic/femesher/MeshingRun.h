@@ -36,15 +36,6 @@
 
 namespace femesher {
 
-/// The interface surface handed to the volume mesher, and how it was made.
-struct InterfaceSurface {
-  BoundarySurface surface;
-  LocalDelaunayResult ldt;
-  bool ldtUsed = false;
-  double junctionShare = 0;
-  double restrictedSeconds = 0, ldtSeconds = 0;
-};
-
 struct StageTiming {
   std::string name;
   double seconds = 0;

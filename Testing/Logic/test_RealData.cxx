@@ -197,12 +197,13 @@ TEST(RealDataDeterminism, KneeBoundaryMeshIndependentOfHeapLayout) {
   std::vector<Vec3> points;
   for (const auto& j : junctions.particles) points.push_back(j.local);
   for (uint32_t i : samples.selected) points.push_back(samples.all[i].local);
-  const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
-  const BoundarySurface a = buildBoundaryMesh(field, points, samples, ctx, 0.5 * smin, &junctions);
+  BoundaryMeshParameters bp;
+  bp.facetDistance = 0.5;  // voxels
+  const BoundarySurface a = buildBoundaryMesh(field, points, samples, &junctions, bp, ctx);
   std::vector<std::unique_ptr<char[]>> junk;
   for (size_t i = 0; i < 20000; ++i) junk.emplace_back(new char[16 + (i * 7919) % 150000]);
   for (size_t i = 0; i < junk.size(); i += 3) junk[i].reset();
-  const BoundarySurface b = buildBoundaryMesh(field, points, samples, ctx, 0.5 * smin, &junctions);
+  const BoundarySurface b = buildBoundaryMesh(field, points, samples, &junctions, bp, ctx);
   EXPECT_GT(a.refinementPoints + a.voxelCentrePoints, 0u);
   EXPECT_EQ(a.refinementPoints, b.refinementPoints);
   EXPECT_EQ(a.voxelCentrePoints, b.voxelCentrePoints);

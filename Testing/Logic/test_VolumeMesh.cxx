@@ -61,7 +61,10 @@ BoundarySurface cubeSurface(int32_t innerLabel) {
             points.push_back({x - pv.offset[0], y - pv.offset[1], z - pv.offset[2]});
   }
   RunContext ctx;
-  return buildBoundaryMesh(*in.field, points, SurfaceSamples{}, ctx, 0, nullptr, false);
+  BoundaryMeshParameters bp;
+  bp.facetDistance = 0;
+  bp.voxelRefinement = false;
+  return buildBoundaryMesh(*in.field, points, SurfaceSamples{}, nullptr, bp, ctx);
 }
 
 /// The result as a TetMesh (canonical frame, compact labels).

@@ -55,7 +55,6 @@
 /// independent of the thread count: the stars are computed in parallel but merged and sorted, and
 /// every later choice is made on sorted data.
 
-#include <femesher/stages/BoundaryMesh.h>
 #include <femesher/stages/IndicatorFunctions.h>
 #include <femesher/stages/Junctions.h>
 #include <femesher/stages/ParticleSystem.h>
@@ -67,6 +66,7 @@
 namespace femesher {
 
 class RunContext;
+struct BoundarySurface;  // BoundaryMesh.h
 
 struct LocalDelaunayParameters {
   /// A candidate q of p's star must have n_p . n_q above this (unit normals of the same patch).
@@ -119,7 +119,8 @@ struct LocalDelaunayResult {
 };
 
 /// `restricted` must be the buildBoundaryMesh result for exactly `particles` (same order): its
-/// Delaunay triangulation gives the natural neighbours, its triangles the step-5 closure.
+/// Delaunay triangulation gives the natural neighbours, its triangles the step-5 closure (an
+/// empty result when it has no triangulation).
 LocalDelaunayResult buildLocalDelaunaySurface(const IndicatorField& field,
                                               const std::vector<Particle>& particles,
                                               const Junctions& junctions,
