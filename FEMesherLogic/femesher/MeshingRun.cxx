@@ -123,10 +123,15 @@ void MeshingRun::sizingField() {
   state_.sizing = [field, grid](const Vec3& c) { return double(field->at(grid.canonicalToGridMm(c))); };
 }
 
+void MeshingRun::setSizing(SizingFunction sizing) {
+  state_.sizing = std::move(sizing);
+  customSizing_ = true;
+}
+
 void MeshingRun::surfaceSampling() {
   SurfaceSamplingParameters sp;
   sp.targetEdgeLength = state_.edgeLength;
-  if (state_.sizingField) sp.sizing = state_.sizing;
+  if (state_.sizingField || customSizing_) sp.sizing = state_.sizing;
   sp.seed = params_.run.seed;
   state_.samples = sampleInterfaces(*state_.field, input_, sp, ctx_);
 }

@@ -81,6 +81,11 @@ class MeshingRun {
   const LabelVolume& input() const { return input_; }
   const MeshingParameters& parameters() const { return params_; }
 
+  /// Replaces the run's size (the target edge length, mm, at a canonical point) for the stages
+  /// still to run: sampling, junctions and particles follow it as they follow the adaptive field.
+  /// For experiments and tests with a prescribed size; call it after IndicatorFunctions.
+  void setSizing(SizingFunction sizing);
+
   /// The sizing field as an image on the working grid, placed in the input's physical space
   /// (what `femesher sizing` writes). Requires the SizingField stage to have run.
   LabelVolume sizingFieldGeometry() const { return state_.grid.geometryIn(input_); }
@@ -111,6 +116,7 @@ class MeshingRun {
   MeshingState state_;
   LabelMedialAxes axes_;  ///< between MedialAxis and SizingField only
   int next_ = 0;          ///< index in stageTable() of the next stage to run
+  bool customSizing_ = false;  ///< setSizing was called
 };
 
 }  // namespace femesher

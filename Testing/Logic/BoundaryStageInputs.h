@@ -4,6 +4,9 @@
 // functions, sampling, junctions, particle system, unrefined restricted Delaunay surface), for
 // the ParticleSystem, BoundaryMesh and LocalDelaunay tests. The stage parameters the tests
 // depend on are set here explicitly (not left to the structs' defaults).
+#include "TestShapes.h"
+
+#include <femesher/MeshingRun.h>
 #include <femesher/RunContext.h>
 #include <femesher/Types.h>
 #include <femesher/stages/BoundaryMesh.h>
@@ -28,87 +31,58 @@
 
 namespace femesher::testing {
 
-/// An n^3 volume, spacing 1, labelled by `label(x, y, z)` with (x, y, z) the voxel centre
-/// relative to the volume's centre.
-inline LabelVolume makeVolume(int n, const std::function<int(double, double, double)>& label) {
-  LabelVolume v;
-  v.dims = {n, n, n};
-  v.labels.resize(size_t(n) * n * n);
-  const double c = (n - 1) / 2.0;
-  for (int k = 0; k < n; ++k)
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i) v.labels[v.index(i, j, k)] = label(i - c, j - c, k - c);
-  return v;
-}
+// The generated shapes of TestShapes.h, by their plain names here.
+using test::fourAtAPoint;
+using test::makeVolume;
+using test::threeSlabs;
+using test::twoSpheres;
 
-/// Two touching balls (1 at x < 0, 2 at x >= 0, radius 8 voxels, centres 14 voxels apart) in 36^3.
-inline LabelVolume twoSpheres() {
-  return makeVolume(36, [](double x, double y, double z) {
-    if ((x + 7) * (x + 7) + y * y + z * z < 64) return 1;
-    if ((x - 7) * (x - 7) + y * y + z * z < 64 && x >= 0) return 2;
-    return 0;
-  });
-}
-
-/// Three slabs (1, 2, 3: angular sectors about the z axis) meeting on the z axis, inside a ball
-/// of radius 15 voxels in 36^3: one triple line of (1, 2, 3), ending on the ball's surface.
-inline LabelVolume threeSlabs() {
-  return makeVolume(36, [](double x, double y, double z) {
-    if (x * x + y * y + z * z >= 15 * 15) return 0;
-    const double a = std::atan2(y, x);
-    return a < -1.0 ? 1 : (a < 1.2 ? 2 : 3);
-  });
-}
-
-/// Four materials meeting at a point (octant-like sectors inside a ball of radius 15 voxels,
-/// 36^3): a quadruple point of (1, 2, 3, 4) near the centre.
-inline LabelVolume fourAtAPoint() {
-  return makeVolume(36, [](double x, double y, double z) {
-    if (x * x + y * y + z * z >= 15 * 15) return 0;
-    if (z < 0.3) return x < 0.2 ? 1 : 2;
-    return y < -0.4 ? 3 : 4;
-  });
-}
-
-/// The three shapes above, by name.
+/// Two touching spheres, three slabs on a line, four materials at a point, by name.
 inline std::vector<std::pair<const char*, LabelVolume>> namedShapes() {
   return {{"two spheres", twoSpheres()},
           {"three slabs", threeSlabs()},
           {"four at a point", fourAtAPoint()}};
 }
 
-/// The stage outputs up to the boundary mesh.
+/// The stage outputs up to the boundary mesh: a MeshingRun (the pipeline's own stage glue) run
+/// through the particle system, plus the particles' unrefined restricted Delaunay surface.
 struct StageRun {
-  PreprocessedVolume vol;
-  std::unique_ptr<IndicatorField> field;
-  SurfaceSamples samples;
-  Junctions junctions;
-  ParticleSystemResult ps;
-  std::vector<Vec3> points;  ///< the particles' local positions (junction particles first)
-  BoundarySurface surface;   ///< restricted Delaunay surface of `points`, no refinement
+  StageRun(std::shared_ptr<const LabelVolume> in, std::unique_ptr<RunContext> context,
+           std::unique_ptr<MeshingRun> meshingRun)
+      : input(std::move(in)), ctx(std::move(context)), run(std::move(meshingRun)),
+        vol(run->state().grid), field(run->state().field), samples(run->state().samples),
+        junctions(run->state().junctions), ps(run->state().particleSystem),
+        points(run->state().particles) {}
+  std::shared_ptr<const LabelVolume> input;
+  std::unique_ptr<RunContext> ctx;
+  std::unique_ptr<MeshingRun> run;
+  const PreprocessedVolume& vol;
+  const std::unique_ptr<IndicatorField>& field;
+  const SurfaceSamples& samples;
+  const Junctions& junctions;
+  const ParticleSystemResult& ps;
+  const std::vector<Vec3>& points;  ///< the particles' local positions (junction particles first)
+  BoundarySurface surface;          ///< restricted Delaunay surface of `points`, no refinement
 };
 
 /// Runs the stages on `v` with sampling spacing h (mm) and the given sizing: indicator smoothing
 /// sigma 0.8 voxel, 30 particle-system iterations, the other stages at their defaults.
 inline StageRun runStages(const LabelVolume& v, double h, const SizingFunction& sizing) {
-  StageRun r;
-  RunContext ctx;
-  r.vol = preprocessLabels(v, {}, ctx);
-  IndicatorParameters ip;
-  ip.sigma = 0.8;
-  r.field = std::make_unique<IndicatorField>(computeIndicatorFunctions(r.vol, ip, ctx));
-  SurfaceSamplingParameters sp;
-  sp.targetEdgeLength = h;
-  sp.sizing = sizing;
-  r.samples = sampleInterfaces(*r.field, v, sp, ctx);
-  r.junctions = findJunctions(*r.field, sizing, {}, ctx);
-  ParticleSystemParameters pp;
-  pp.maxIterations = 30;
-  r.ps = runParticleSystem(*r.field, r.samples, r.junctions, sizing, v, pp, ctx);
-  for (const auto& p : r.ps.particles) r.points.push_back(p.local);
+  MeshingParameters p;
+  p.indicators.sigma = 0.8;
+  p.particles.maxIterations = 30;
+  p.sizing.mode = SizingMode::Uniform;
+  p.sizing.targetEdgeLength = h;
+  auto input = std::make_shared<const LabelVolume>(v);
+  auto ctx = std::make_unique<RunContext>();
+  auto run = std::make_unique<MeshingRun>(*input, p, *ctx);
+  run->runThrough(StageId::IndicatorFunctions);
+  run->setSizing(sizing);
+  run->runThrough(StageId::ParticleSystem);
+  StageRun r(std::move(input), std::move(ctx), std::move(run));
   BoundaryMeshParameters unrefined;
   unrefined.facetDistance = 0;
-  r.surface = buildBoundaryMesh(*r.field, r.points, r.samples, nullptr, unrefined, ctx);
+  r.surface = buildBoundaryMesh(*r.field, r.points, r.samples, nullptr, unrefined, *r.ctx);
   return r;
 }
 
