@@ -331,40 +331,54 @@ int runPhantom(const std::string& output, double voxelSize) {
   return 0;
 }
 
-/// `femesher medial-axis`: the Integer Medial Axis as a label image (the label whose axis passes
-/// through a voxel; -1 elsewhere), with the input's geometry.
+/// `femesher medial-axis`: the Integer Medial Axis the mesh run computes, as a label image on the
+/// run's working grid (the labelled box plus a margin) in the input's physical space: each voxel
+/// holds the label whose axis passes through it (-1 elsewhere; background 0 included).
 int runMedialAxis(const std::string& input, const std::string& output, const std::string& labelText,
                   const std::string& prune, double gamma, double gammaConstant) {
-  auto volume = readLabelMap(input);
-  if (!volume) return fail(volume.status());
-  MedialAxisParameters mp;
-  if (!prune.empty() && !parseMedialAxisPruning(prune, mp.pruning))
+  MeshingParameters p;
+  p.sizing.mode = SizingMode::Adaptive;
+  if (!prune.empty() && !parseMedialAxisPruning(prune, p.sizing.pruning))
     return fail({ErrorCode::InvalidArgument,
                  "--prune '" + prune + "': use none, constant, linear, sqrt or constant-linear"});
-  if (gamma >= 0) mp.gamma = gamma;
-  if (gammaConstant >= 0) mp.gammaConstant = gammaConstant;
-  LabelVolume out = volume.value();
-  try {
-    if (!labelText.empty()) {
-      char* end = nullptr;
-      const long label = std::strtol(labelText.c_str(), &end, 10);
-      if (!end || *end != '\0')
-        return fail({ErrorCode::InvalidArgument, "--label '" + labelText + "' is not an integer"});
-      const MedialAxis axis = computeLabelMedialAxis(volume.value(), int32_t(label), mp);
-      std::fill(out.labels.begin(), out.labels.end(), -1);
-      for (uint32_t v : axis.voxels) out.labels[v] = int32_t(label);
-      std::fprintf(stderr, "label %ld: %zu medial voxels (pruning %s, gamma %g)\n", label,
-                   axis.voxels.size(), medialAxisPruningName(mp.pruning), mp.gamma);
-    } else {
-      RunContext ctx;
-      const LabelMedialAxes axes = computeAllMedialAxes(volume.value(), mp, ctx);
-      out.labels = axes.labelImage(-1);
-      std::fprintf(stderr, "%zu medial voxels over %zu labels (pruning %s, gamma %g)\n",
-                   axes.voxelCount(), axes.labels.size(), medialAxisPruningName(mp.pruning), mp.gamma);
-    }
-  } catch (const Error& e) {
-    return fail(e.status());
+  if (gamma >= 0) p.sizing.gamma = gamma;
+  if (gammaConstant >= 0) p.sizing.gammaConstant = gammaConstant;
+  long label = 0;
+  if (!labelText.empty()) {
+    char* end = nullptr;
+    label = std::strtol(labelText.c_str(), &end, 10);
+    if (!end || *end != '\0')
+      return fail({ErrorCode::InvalidArgument, "--label '" + labelText + "' is not an integer"});
   }
+  auto volume = readLabelMap(input);
+  if (!volume) return fail(volume.status());
+  RunContext ctx;
+  LabelVolume out;
+  size_t voxels = 0;
+  if (Status s = runGuarded([&] {
+        MeshingRun run(volume.value(), p, ctx);
+        run.runThrough(StageId::MedialAxis);
+        const PreprocessedVolume& grid = run.state().grid;
+        const LabelMedialAxes& axes = *run.state().medialAxes;
+        out = run.workingGridGeometry();
+        out.labels.assign(grid.voxelCount(), -1);
+        for (size_t a = 0; a < axes.labels.size(); ++a) {
+          const int32_t user = grid.userLabel[size_t(axes.labels[a])];
+          if (!labelText.empty() && user != label) continue;
+          for (uint32_t v : axes.axes[a].voxels) out.labels[v] = user;
+          voxels += axes.axes[a].voxels.size();
+        }
+        if (!labelText.empty() &&
+            std::find(grid.userLabel.begin(), grid.userLabel.end(), int32_t(label)) ==
+                grid.userLabel.end())
+          throw Error(ErrorCode::InvalidArgument,
+                      "--label " + labelText + ": " + input + " has no meshed material with that "
+                      "label (see `femesher info " + input + "`).");
+      });
+      !s)
+    return fail(s);
+  std::fprintf(stderr, "%zu medial voxels (pruning %s, gamma %g)\n", voxels,
+               medialAxisPruningName(p.sizing.pruning), p.sizing.gamma);
   if (Status s = writeLabelMap(out, output); !s) return fail(s);
   std::fprintf(stderr, "wrote %s\n", output.c_str());
   return 0;
@@ -387,7 +401,7 @@ int runSizing(const std::string& input, const std::string& output, const MeshOpt
         MeshingRun run(volume.value(), p, ctx);
         run.runThrough(StageId::SizingField);
         field = run.state().sizingField;
-        geometry = run.sizingFieldGeometry();
+        geometry = run.workingGridGeometry();
       });
       !s)
     return fail(s);
@@ -483,7 +497,7 @@ int main(int argc, char** argv) {
 
   std::string maInput, maOutput, maLabel, maPrune;
   double maGamma = -1, maGammaConstant = -1;
-  auto* medial = app.add_subcommand("medial-axis", "Write the Integer Medial Axis as a label image");
+  auto* medial = app.add_subcommand("medial-axis", "Write the Integer Medial Axis a mesh run computes (on its working grid) as a label image");
   medial->add_option("input", maInput, "Label map")->required();
   medial->add_option("-o,--output", maOutput, "Output label image (.nrrd .nii.gz .mha)")->required();
   medial->add_option("--label", maLabel, "Only this label (default: every label, background too)");
@@ -493,7 +507,7 @@ int main(int argc, char** argv) {
 
   std::string szInput, szOutput;
   MeshOptions szOpts;
-  auto* sizingCmd = app.add_subcommand("sizing", "Write the adaptive sizing field (mm) as a float image");
+  auto* sizingCmd = app.add_subcommand("sizing", "Write the adaptive sizing field a mesh run uses (mm, on its working grid) as a float image");
   sizingCmd->add_option("input", szInput, "Label map")->required();
   sizingCmd->add_option("-o,--output", szOutput, "Output image (.nrrd .nii.gz .mha)")->required();
   sizingCmd->add_option("--preset", szOpts.preset, "Parameter preset: coarse, default, fine");

@@ -107,8 +107,9 @@ void MeshingRun::indicatorFunctions() {
 void MeshingRun::medialAxis() {
   SizingParameters sp = params_.sizing;
   sp.threads = ctx_.threads();
-  axes_ = computeAllMedialAxes(workingLabelMap(state_.grid), medialAxisParameters(sp), ctx_);
-  state_.medialVoxels = axes_.voxelCount();
+  state_.medialAxes = std::make_shared<const LabelMedialAxes>(
+      computeAllMedialAxes(workingLabelMap(state_.grid), medialAxisParameters(sp), ctx_));
+  state_.medialVoxels = state_.medialAxes->voxelCount();
 }
 
 void MeshingRun::sizingField() {
@@ -116,8 +117,8 @@ void MeshingRun::sizingField() {
   sp.threads = ctx_.threads();
   sp.targetEdgeLength = state_.edgeLength;  // the automatic bounds follow the run's edge length
   auto field = std::make_shared<const SizingField>(
-      computeSizingField(workingLabelMap(state_.grid), axes_, sp, ctx_));
-  axes_ = LabelMedialAxes{};
+      computeSizingField(workingLabelMap(state_.grid), *state_.medialAxes, sp, ctx_));
+  state_.medialAxes.reset();
   state_.sizingField = field;
   const WorkingGrid grid = state_.grid;
   state_.sizing = [field, grid](const Vec3& c) { return double(field->at(grid.canonicalToGridMm(c))); };

@@ -47,6 +47,8 @@ struct MeshingState {
   std::unique_ptr<IndicatorField> field;        ///< IndicatorFunctions
   double edgeLength = 0;                        ///< mm, the uniform edge length of the run
   size_t medialVoxels = 0;                      ///< MedialAxis
+  /// MedialAxis, on `grid` with compact labels; released once the sizing field is made.
+  std::shared_ptr<const LabelMedialAxes> medialAxes;
   std::shared_ptr<const SizingField> sizingField;  ///< SizingField (on `grid`, grid-mm frame)
   SizingFunction sizing;                        ///< target edge length at a canonical point
   SurfaceSamples samples;                       ///< SurfaceSampling
@@ -86,9 +88,9 @@ class MeshingRun {
   /// For experiments and tests with a prescribed size; call it after IndicatorFunctions.
   void setSizing(SizingFunction sizing);
 
-  /// The sizing field as an image on the working grid, placed in the input's physical space
-  /// (what `femesher sizing` writes). Requires the SizingField stage to have run.
-  LabelVolume sizingFieldGeometry() const { return state_.grid.geometryIn(input_); }
+  /// An image header for the working grid placed in the input's physical space (what
+  /// `femesher sizing` and `femesher medial-axis` write on). Requires LabelPreprocess to have run.
+  LabelVolume workingGridGeometry() const { return state_.grid.geometryIn(input_); }
 
   /// Every stage result's counts, in report order.
   ReportCounts reportCounts() const;
@@ -114,7 +116,6 @@ class MeshingRun {
   const MeshingParameters params_;
   RunContext& ctx_;
   MeshingState state_;
-  LabelMedialAxes axes_;  ///< between MedialAxis and SizingField only
   int next_ = 0;          ///< index in stageTable() of the next stage to run
   bool customSizing_ = false;  ///< setSizing was called
 };

@@ -38,7 +38,7 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
     result.droppedLabels = s.grid.droppedLabels;
     result.excludedLabels = s.grid.excludedLabels;
     result.sizingField = s.sizingField;
-    if (s.sizingField) result.sizingGeometry = run.sizingFieldGeometry();
+    if (s.sizingField) result.sizingGeometry = run.workingGridGeometry();
     result.hasFidelity = s.hasFidelity;
     result.mesh = std::move(s.mesh);
     result.quality = std::move(s.quality);

@@ -14,6 +14,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -34,19 +35,20 @@ LabelVolume obliquePhantom() {
   return v;
 }
 
-std::map<int32_t, double> materialVolumes(const TetMesh& m) {
-  std::map<int32_t, double> vol;
-  for (size_t t = 0; t < m.tets.size(); ++t) {
-    const auto& p0 = m.points[size_t(m.tets[t][0])];
-    std::array<Vec3, 3> e;
-    for (int k = 0; k < 3; ++k)
-      for (int a = 0; a < 3; ++a) e[k][a] = m.points[size_t(m.tets[t][k + 1])][a] - p0[a];
-    const double det = e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) -
-                       e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0]) +
-                       e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0]);
-    vol[m.tetLabels[t]] += std::abs(det) / 6.0;
-  }
-  return vol;
+double total(const std::map<int32_t, double>& volumes) {
+  double t = 0;
+  for (const auto& [label, v] : volumes) t += v;
+  return t;
+}
+
+/// The phantom meshed with `key` = `value` on top of `base`.
+PipelineResult meshWith(const LabelVolume& v, MeshingParameters p, const std::string& key,
+                        const std::string& value) {
+  EXPECT_TRUE(setParameter(p, key, value).isOk()) << key;
+  RunContext ctx;
+  auto r = runPipeline(v, p, ctx);
+  EXPECT_TRUE(r.isOk()) << r.status().message();
+  return r.isOk() ? std::move(r.value()) : PipelineResult{};
 }
 
 }  // namespace
@@ -139,49 +141,48 @@ TEST(MeshingRun, CliSizingWritesTheFieldTheMeshRunUses) {
   for (size_t i = 0; i < mesh->sizingField->h.size(); ++i)
     differing += values[i] != mesh->sizingField->h[i];
   EXPECT_EQ(differing, 0u) << "femesher sizing wrote another field than the mesh run used";
+
+  // `femesher medial-axis` writes the axes of that run, on the same grid.
+  const std::string axesPath = dir + "/axes.nrrd";
+  std::filesystem::remove(axesPath);
+  const std::string ma = std::string(FEMESHER_CLI) + " medial-axis " + in + " -o " + axesPath +
+                         " 2>/dev/null";
+  ASSERT_EQ(std::system(ma.c_str()), 0) << ma;
+  auto axes = readLabelMap(axesPath);
+  ASSERT_TRUE(axes.isOk()) << axes.status().message();
+  EXPECT_EQ(axes->dims, g.dims);
+  const size_t medial = size_t(std::count_if(axes->labels.begin(), axes->labels.end(),
+                                             [](int32_t l) { return l != -1; }));
+  double reported = -1;
+  for (const auto& [k, x] : mesh->counts)
+    if (k == "medial_axis_voxels") reported = x;
+  EXPECT_EQ(double(medial), reported);
 }
 
 TEST(MeshingRun, ExcludedMaterialsMergeOrLeaveACavity) {
   const LabelVolume v = makePhantom();
   MeshingParameters base;
   base.run.computeFidelity = false;
-  RunContext c0;
-  auto all = runPipeline(v, base, c0);
-  ASSERT_TRUE(all.isOk()) << all.status().message();
-  const auto v0 = materialVolumes(all->mesh);
+  const auto v0 = labelVolumes(meshWith(v, base, "min_voxels", "10").mesh);
   ASSERT_TRUE(v0.count(3));
 
   // Marrow (3) merged: gone from the mesh, its volume joins its neighbours, total kept.
-  MeshingParameters merge = base;
-  ASSERT_TRUE(setParameter(merge, "material.3.exclude", "merge").isOk());
-  RunContext c1;
-  auto merged = runPipeline(v, merge, c1);
-  ASSERT_TRUE(merged.isOk()) << merged.status().message();
-  const auto v1 = materialVolumes(merged->mesh);
+  const PipelineResult merged = meshWith(v, base, "material.3.exclude", "merge");
+  const auto v1 = labelVolumes(merged.mesh);
   EXPECT_FALSE(v1.count(3));
-  double t0 = 0, t1 = 0;
-  for (const auto& [l, x] : v0) t0 += x;
-  for (const auto& [l, x] : v1) t1 += x;
-  EXPECT_NEAR(t1, t0, 0.01 * t0);
-  EXPECT_EQ(merged->excludedLabels, std::vector<int32_t>{3});
+  EXPECT_NEAR(total(v1), total(v0), 0.01 * total(v0));
+  EXPECT_EQ(merged.excludedLabels, std::vector<int32_t>{3});
   bool named = false;
-  for (const auto& w : merged->warnings)
+  for (const auto& w : merged.warnings)
     named |= w.find("merged into its neighbours") != std::string::npos &&
              w.find("label 2") != std::string::npos;
   EXPECT_TRUE(named) << "the warning must name the material the marrow joined";
-  expectConformal(merged->mesh);
+  expectConformal(merged.mesh);
 
   // Marrow as background: a cavity of about its volume.
-  MeshingParameters cut = base;
-  ASSERT_TRUE(setParameter(cut, "material.3.exclude", "background").isOk());
-  RunContext c2;
-  auto cavity = runPipeline(v, cut, c2);
-  ASSERT_TRUE(cavity.isOk()) << cavity.status().message();
-  const auto v2 = materialVolumes(cavity->mesh);
+  const auto v2 = labelVolumes(meshWith(v, base, "material.3.exclude", "background").mesh);
   EXPECT_FALSE(v2.count(3));
-  double t2 = 0;
-  for (const auto& [l, x] : v2) t2 += x;
-  EXPECT_NEAR(t0 - t2, v0.at(3), 0.05 * v0.at(3));
+  EXPECT_NEAR(total(v0) - total(v2), v0.at(3), 0.05 * v0.at(3));
 
   // Everything excluded: a clear error, not an empty mesh.
   MeshingParameters none = base;
