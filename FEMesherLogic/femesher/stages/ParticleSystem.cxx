@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/StageTable.h>
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
 #include <femesher/SpatialHash.h>
@@ -206,7 +207,7 @@ void sendPreview(RunContext& ctx, const std::vector<Particle>& P, const Surface&
                  const LabelVolume& input, int iteration, bool force) {
   if (!ctx.wantsPreview()) return;
   auto snap = std::make_shared<PreviewSnapshot>();
-  snap->stage = "ParticleSystem";
+  snap->stage = stageInfo(StageId::ParticleSystem).key;
   snap->kind = "points";
   snap->iteration = iteration;
   std::unordered_map<uint32_t, int32_t> groupOf;

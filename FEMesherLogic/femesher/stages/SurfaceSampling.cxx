@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/StageTable.h>
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
 #include <femesher/SpatialHash.h>
@@ -182,7 +183,7 @@ SurfaceSamples sampleInterfaces(const IndicatorField& field, const LabelVolume& 
   // --- Preview: the selected samples per interface, in LPS ---------------------------------
   if (ctx.wantsPreview()) {
     auto snap = std::make_shared<PreviewSnapshot>();
-    snap->stage = "SurfaceSampling";
+    snap->stage = stageInfo(StageId::SurfaceSampling).key;
     snap->kind = "points";
     std::unordered_map<uint32_t, int32_t> groupOf;
     for (uint32_t i : out.selected) {
