@@ -104,7 +104,7 @@ inline LocalDelaunayResult localDelaunay(const StageRun& r, const LocalDelaunayP
                                          int threads = 0) {
   RunContext ctx;
   ctx.setThreads(threads);
-  return buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, r.surface, ctx, p);
+  return buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, r.surface, p, ctx);
 }
 
 /// A crippled star phase (neighbours must have almost the same normal, 3 votes needed) that

@@ -87,7 +87,8 @@ TEST(LocalDelaunay, EmptyWithoutARestrictedTriangulation) {
   none.delaunay.reset();
   RunContext ctx;
   const LocalDelaunayResult ldt =
-      buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, none, ctx);
+      buildLocalDelaunaySurface(*r.field, r.ps.particles, r.junctions, none,
+                                LocalDelaunayParameters{}, ctx);
   EXPECT_TRUE(ldt.triangles.empty());
   EXPECT_EQ(ldt.starTriangles, 0u);
   EXPECT_EQ(ldt.lineLinks, 0u);

@@ -141,7 +141,8 @@ void addLocalDelaunaySurface(const IndicatorField& field, const std::vector<Vec3
     unrefined.facetDistance = 0;
     particlesOnly = buildBoundaryMesh(field, particles, samples, nullptr, unrefined, ctx);
   }
-  ldt = buildLocalDelaunaySurface(field, plist, junctions, refined ? particlesOnly : surface, ctx);
+  ldt = buildLocalDelaunaySurface(field, plist, junctions, refined ? particlesOnly : surface,
+                                  LocalDelaunayParameters{}, ctx);
   out.ldtSeconds = std::chrono::duration<double>(Clock::now() - ldtStart).count();
   if (ldt.openEdgesAfter > 0 || ldt.selfIntersectionsAfter > 0) {
     // An open surface would let TetGen's regions leak into each other (wrong materials), a

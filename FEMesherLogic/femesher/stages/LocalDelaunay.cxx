@@ -96,8 +96,9 @@ size_t countSelfIntersections(const std::vector<Vec3>& points,
 LocalDelaunayResult buildLocalDelaunaySurface(const IndicatorField& field,
                                               const std::vector<Particle>& particles,
                                               const Junctions& junctions,
-                                              const BoundarySurface& restricted, RunContext& ctx,
-                                              const LocalDelaunayParameters& params) {
+                                              const BoundarySurface& restricted,
+                                              const LocalDelaunayParameters& params,
+                                              RunContext& ctx) {
   LocalDelaunayResult res;
   if (!restricted.delaunay) return res;
   ldt::Builder(field, particles, junctions, restricted, ctx, params, res).run();

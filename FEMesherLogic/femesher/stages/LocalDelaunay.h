@@ -124,8 +124,9 @@ struct LocalDelaunayResult {
 LocalDelaunayResult buildLocalDelaunaySurface(const IndicatorField& field,
                                               const std::vector<Particle>& particles,
                                               const Junctions& junctions,
-                                              const BoundarySurface& restricted, RunContext& ctx,
-                                              const LocalDelaunayParameters& params = {});
+                                              const BoundarySurface& restricted,
+                                              const LocalDelaunayParameters& params,
+                                              RunContext& ctx);
 
 /// Open edges of a multi-material triangle set: for every material, edges used an odd number of
 /// times by the triangles bounding it (label 0 = outside is not counted).
