@@ -52,10 +52,11 @@ void writeIdLines(std::FILE* f, const std::vector<size_t>& ids) {
 }  // namespace
 
 Status writeInp(const TetMesh& m, const std::string& path, const ExportOptions& o) {
-  const auto byLabel = tetsByLabel(m);
-  const auto tris = extractInterfaces(m);
-  const auto patches = patchesOf(tris);
-  const auto elset = abaqusElsetNames(m);
+  const SolverDeckTables tables(m);
+  const auto& byLabel = tables.byLabel;
+  const auto& tris = tables.tris;
+  const auto& patches = tables.patches;
+  const auto& elset = tables.elset;
   return writeText(path, [&](std::FILE* f) {
     // CalculiX reads at most 132 characters per line.
     std::string heading = "FEMesher " FEMESHER_VERSION " multi-material tet mesh, LPS mm";

@@ -75,6 +75,18 @@ std::string patchName(const PatchKey& k);
 /// lines and every name its 80-character limit). FEBio domains use the same names.
 std::map<int32_t, std::string> abaqusElsetNames(const TetMesh& m);
 
+/// What the solver decks (Abaqus, FEBio) are written from: tets per label, the interface and
+/// boundary triangles grouped into patches, and the element-set names.
+struct SolverDeckTables {
+  explicit SolverDeckTables(const TetMesh& m)
+      : byLabel(tetsByLabel(m)), tris(extractInterfaces(m)), patches(patchesOf(tris)),
+        elset(abaqusElsetNames(m)) {}
+  std::map<int32_t, std::vector<size_t>> byLabel;
+  std::vector<InterfaceTriangle> tris;
+  std::map<PatchKey, std::vector<size_t>> patches;
+  std::map<int32_t, std::string> elset;
+};
+
 /// Label as it may appear inside an Abaqus identifier: 7 -> "7", -7 -> "N7".
 std::string labelToken(int32_t l);
 
