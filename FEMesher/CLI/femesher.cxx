@@ -538,6 +538,9 @@ int main(int argc, char** argv) {
                     d.defaultValue.c_str(), d.unit.c_str(), d.help.c_str());
       std::printf("%-24s %-7s %-18s %-8s %s\n", "material.<label>.E", "double", "", "MPa",
                   "Young's modulus of one material in solver exports (also .nu, .density).");
+      std::printf("%-24s %-7s %-18s %-8s %s\n", "material.<label>.exclude", "choice", "default no",
+                  "", "Leave the material out: 'background' (a cavity or a cut) or 'merge' (its "
+                  "voxels join the neighbouring material); 'no' meshes it.");
       return 0;
     }
   } catch (const Error& e) {
