@@ -129,6 +129,8 @@ TEST(Quality, SliverHasTinyDihedralAndLargeRatios) {
   EXPECT_LT(q.scaledJacobian[0], 0.01);
   const QualityReport r = summarizeQuality(m, q);
   EXPECT_EQ(r.minDihedralBelow5, 1u);
+  EXPECT_EQ(r.minDihedralBelow10, 1u);
+  EXPECT_EQ(r.minDihedralBelow15, 1u);
   EXPECT_EQ(r.all.find("aspect_ratio")->badCount, 1u);
   EXPECT_EQ(r.all.find("min_dihedral")->badCount, 1u);
   EXPECT_EQ(r.all.find("max_dihedral")->badCount, 1u);

@@ -350,6 +350,8 @@ QualityReport summarizeQuality(const TetMesh& mesh, const TetQuality& q,
   for (size_t t = 0; t < n; ++t) {
     if (!(q.volume[t] > 0)) ++r.invertedTets;
     if (q.minDihedral[t] < 5.0) ++r.minDihedralBelow5;
+    if (q.minDihedral[t] < 10.0) ++r.minDihedralBelow10;
+    if (q.minDihedral[t] < 15.0) ++r.minDihedralBelow15;
   }
   return r;
 }
@@ -378,6 +380,8 @@ std::string qualityReportToJson(const QualityReport& report, bool withHistograms
   j["per_material"] = per;
   j["inverted_tets"] = report.invertedTets;
   j["min_dihedral_below_5deg"] = report.minDihedralBelow5;
+  j["min_dihedral_below_10deg"] = report.minDihedralBelow10;
+  j["min_dihedral_below_15deg"] = report.minDihedralBelow15;
   return j.dump(2);
 }
 
@@ -396,8 +400,11 @@ std::string qualityReportToText(const QualityReport& report) {
       os << buf;
     }
   };
-  std::snprintf(buf, sizeof buf, "All tets: %zu (%zu inverted or flat, %zu with a dihedral angle below 5 deg)\n",
-                report.all.tets, report.invertedTets, report.minDihedralBelow5);
+  std::snprintf(buf, sizeof buf,
+                "All tets: %zu (%zu inverted or flat; smallest dihedral angle below 5 deg: %zu, "
+                "below 10: %zu, below 15: %zu)\n",
+                report.all.tets, report.invertedTets, report.minDihedralBelow5,
+                report.minDihedralBelow10, report.minDihedralBelow15);
   os << buf;
   table(report.all);
   if (report.perMaterial.size() > 1) {

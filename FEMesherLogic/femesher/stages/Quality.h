@@ -67,6 +67,8 @@ struct QualityReport {
   std::vector<QualitySummary> perMaterial;  ///< sorted by label
   size_t invertedTets = 0;                  ///< signed volume <= 0
   size_t minDihedralBelow5 = 0;             ///< tets with min dihedral < 5 degrees
+  size_t minDihedralBelow10 = 0;            ///< ... < 10 degrees
+  size_t minDihedralBelow15 = 0;            ///< ... < 15 degrees (FE-grade meshes: none)
 };
 
 /// Compute per-tet metrics (multi-threaded, direct Verdict formulas). `ctx` may be null.
