@@ -191,6 +191,9 @@ Result<MeshingParameters> buildParameters(const MeshOptions& o) {
   return params;
 }
 
+int writeRunOutputs(const PipelineResult& result, const MeshingParameters& params,
+                    const MeshOptions& o, const std::string& source, cli::CliProgress& progress);
+
 int runMesh(const MeshOptions& o) {
   auto params = buildParameters(o);
   if (!params) return fail(params.status());
@@ -221,23 +224,29 @@ int runMesh(const MeshOptions& o) {
     progress.finish(false);
     return fail(result.status());
   }
-  ExportOptions eo = exportOptionsFrom(params.value());
-  eo.provenance = "femesher " FEMESHER_VERSION " from " + o.input;
+  return writeRunOutputs(result.value(), params.value(), o, o.input, progress);
+}
+
+/// Writes a finished run's meshes and report, then its summary on stderr.
+int writeRunOutputs(const PipelineResult& result, const MeshingParameters& params,
+                    const MeshOptions& o, const std::string& source, cli::CliProgress& progress) {
+  ExportOptions eo = exportOptionsFrom(params);
+  eo.provenance = "femesher " FEMESHER_VERSION " from " + source;
   for (const auto& out : o.outputs) {
-    if (Status s = writeMesh(result->mesh, out, eo); !s) {
+    if (Status s = writeMesh(result.mesh, out, eo); !s) {
       progress.finish(false);
       return fail(s);
     }
   }
   if (!o.report.empty()) {
-    if (Status s = writeText(o.report, result->reportJson); !s) {
+    if (Status s = writeText(o.report, result.reportJson); !s) {
       progress.finish(false);
       return fail(s);
     }
   }
   progress.finish(true);
   if (!o.quiet) {
-    const auto& r = result.value();
+    const auto& r = result;
     std::fprintf(stderr, "%zu vertices, %zu tets, %zu materials in %.1f s\n", r.mesh.points.size(),
                  r.mesh.tets.size(), r.mesh.materials.size(), r.totalSeconds);
     for (const auto& t : r.timings) std::fprintf(stderr, "  %-20s %8.2f s\n", t.name.c_str(), t.seconds);
@@ -245,6 +254,36 @@ int runMesh(const MeshOptions& o) {
     for (const auto& out : o.outputs) std::fprintf(stderr, "wrote %s\n", out.c_str());
   }
   return 0;
+}
+
+/// `femesher optimize`: the Optimize stage on an existing labelled tet mesh, against the smooth
+/// interfaces of the label map it was made from; writes the improved mesh and its report.
+int runOptimize(const std::string& meshPath, const std::string& labelsPath, const MeshOptions& o) {
+  auto params = buildParameters(o);
+  if (!params) return fail(params.status());
+  if (o.outputs.empty()) return fail({ErrorCode::InvalidArgument, "Nothing to write: give -o OUTPUT."});
+  if (Status s = checkOutputs(o.outputs); !s) return fail(s);
+  cli::CliProgress progress(cli::CliProgress::detect(o.quiet));
+  progress.start("Optimizing " + meshPath);
+  auto mesh = readMesh(meshPath);
+  auto labels = mesh ? readLabelMap(labelsPath) : Result<LabelVolume>(mesh.status());
+  if (!mesh || !labels) {
+    progress.finish(false);
+    return fail(!mesh ? mesh.status() : labels.status());
+  }
+  RunContext ctx;
+  ctx.setProgressCallback([&](const std::string& st, double f, double t) { progress.update(st, f, t); });
+  ctx.setLogCallback([&](LogLevel l, const std::string& m) { progress.log(l, m); });
+  gRunning = &ctx;
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
+  auto result = optimizeMesh(labels.value(), mesh.value(), params.value(), ctx);
+  gRunning = nullptr;
+  if (!result) {
+    progress.finish(false);
+    return fail(Status(result.status().code(), meshPath + ": " + result.status().message()));
+  }
+  return writeRunOutputs(result.value(), params.value(), o, meshPath, progress);
 }
 
 int runInfo(const std::string& input, bool asJson) {
@@ -441,7 +480,7 @@ void addMeshOptions(CLI::App* cmd, MeshOptions& o, bool positionalOutput) {
 int main(int argc, char** argv) {
   // Slicer runs CLI modules as `femesher [--flags] input output` (no sub-command).
   static const std::vector<std::string> commands = {"mesh", "quality", "info", "phantom",
-                                                    "medial-axis", "sizing",
+                                                    "medial-axis", "sizing", "optimize",
                                                     "parameters", "--xml", "--version", "-h",
                                                     "--help"};
   bool slicerStyle = argc > 1;
@@ -513,6 +552,20 @@ int main(int argc, char** argv) {
   sizingCmd->add_option("--preset", szOpts.preset, "Parameter preset: coarse, default, fine");
   sizingCmd->add_option("--set", szOpts.sets, "Set a parameter: key=value (sizing_scale, h_min, h_max, gradation)");
 
+  std::string optMesh, optLabels;
+  MeshOptions optOpts;
+  auto* optimizeCmd = app.add_subcommand(
+      "optimize", "Improve an existing labelled tet mesh against the label map it was made from");
+  optimizeCmd->add_option("mesh", optMesh, "Mesh (.vtu .vtk .msh .mesh)")->required();
+  optimizeCmd->add_option("--labels", optLabels, "The label map the mesh was made from")->required();
+  optimizeCmd->add_option("-o,--output", optOpts.outputs, "Improved mesh; repeat for several formats")
+      ->required();
+  optimizeCmd->add_option("--parameters", optOpts.parameterFile, "JSON parameter file");
+  optimizeCmd->add_option("--set", optOpts.sets, "Set a parameter: key=value (optimize_min_dihedral, ...)");
+  optimizeCmd->add_option("--threads", optOpts.threads, "Worker threads (0 = all cores)");
+  optimizeCmd->add_option("--report", optOpts.report, "Write the run report (JSON)");
+  optimizeCmd->add_flag("-q,--quiet", optOpts.quiet, "Only warnings and errors");
+
   auto* params = app.add_subcommand("parameters", "List the parameters accepted by --set");
 
   try {
@@ -527,6 +580,7 @@ int main(int argc, char** argv) {
   }
   try {
     if (*mesh) return runMesh(meshOpts);
+    if (*optimizeCmd) return runOptimize(optMesh, optLabels, optOpts);
     if (*quality) return runQuality(qualityMesh, qualityLabels, qualityRaster, qualityJson);
     if (*info) return runInfo(infoInput, infoJson);
     if (*phantom) return runPhantom(phantomOut, phantomVoxel);

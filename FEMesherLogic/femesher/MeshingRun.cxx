@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <map>
 
 namespace femesher {
 
@@ -122,6 +123,56 @@ void MeshingRun::sizingField() {
   state_.sizingField = field;
   const WorkingGrid grid = state_.grid;
   state_.sizing = [field, grid](const Vec3& c) { return double(field->at(grid.canonicalToGridMm(c))); };
+}
+
+void MeshingRun::adoptVolumeMesh(const TetMesh& mesh) {
+  const auto& table = stageTable();
+  if (next_ != int(StageId::IndicatorFunctions) + 1 || !state_.field)
+    throw Error(ErrorCode::Internal, "adoptVolumeMesh: run exactly through IndicatorFunctions first");
+  const PreprocessedVolume& vol = state_.grid;
+  std::map<int32_t, int32_t> compact;
+  for (size_t c = 1; c < vol.userLabel.size(); ++c) compact[vol.userLabel[c]] = int32_t(c);
+  VolumeMeshResult& vm = state_.volumeMesh;
+  vm = VolumeMeshResult{};
+  vm.method = "input mesh";
+  vm.points.reserve(mesh.points.size());
+  for (const Vec3& p : mesh.points) vm.points.push_back(input_.physicalToCanonical(p));
+  // The mesh must lie in the label map's space (within a voxel of its box).
+  for (const Vec3& c : vm.points)
+    for (int a = 0; a < 3; ++a) {
+      const double lo = -1.5 * input_.spacing[a], hi = (input_.dims[a] + 0.5) * input_.spacing[a];
+      if (!(c[a] >= lo && c[a] <= hi))
+        throw Error(ErrorCode::InvalidArgument,
+                    "The mesh does not lie in the space of " +
+                        (input_.sourcePath.empty() ? std::string("the label map")
+                                                   : input_.sourcePath) +
+                        " (a vertex is more than a voxel outside its box): give the label map the "
+                        "mesh was made from.");
+    }
+  const bool flip = input_.directionDeterminant() < 0;
+  vm.tets = mesh.tets;
+  vm.labels.reserve(mesh.tets.size());
+  for (size_t t = 0; t < mesh.tets.size(); ++t) {
+    auto it = compact.find(mesh.tetLabels[t]);
+    if (it == compact.end())
+      throw Error(ErrorCode::InvalidArgument,
+                  "Tet " + std::to_string(t) + " has material " + std::to_string(mesh.tetLabels[t]) +
+                      ", which is not a meshed material of " +
+                      (input_.sourcePath.empty() ? std::string("the label map") : input_.sourcePath) +
+                      " (absent, below min_voxels or excluded): give the label map the mesh was "
+                      "made from.");
+    vm.labels.push_back(it->second);
+    if (flip) std::swap(vm.tets[t][2], vm.tets[t][3]);
+    const auto& T = vm.tets[t];
+    if (tetMinDihedral(vm.points[size_t(T[0])], vm.points[size_t(T[1])], vm.points[size_t(T[2])],
+                       vm.points[size_t(T[3])]) < 0)
+      throw Error(ErrorCode::InvalidArgument,
+                  "Tet " + std::to_string(t) + " of the mesh is inverted or flat: the mesh must "
+                  "have positively oriented tets of non-zero volume to be improved.");
+  }
+  // Continue with Optimize.
+  for (next_ = 0; next_ < int(table.size()) && table[size_t(next_)].id != StageId::Optimize; ++next_) {
+  }
 }
 
 void MeshingRun::setSizing(SizingFunction sizing) {

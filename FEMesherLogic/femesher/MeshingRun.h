@@ -88,6 +88,13 @@ class MeshingRun {
   /// For experiments and tests with a prescribed size; call it after IndicatorFunctions.
   void setSizing(SizingFunction sizing);
 
+  /// Takes an existing mesh (physical LPS, user labels, as the readers return it) as the volume
+  /// mesh, so that the run continues with Optimize, Quality and Fidelity on it (`femesher
+  /// optimize`). Requires IndicatorFunctions to have run, and no stage after it. Throws
+  /// InvalidArgument when a tet's material is not a material of the label map (or was dropped or
+  /// excluded) or a tet is inverted or flat.
+  void adoptVolumeMesh(const TetMesh& mesh);
+
   /// An image header for the working grid placed in the input's physical space (what
   /// `femesher sizing` and `femesher medial-axis` write on). Requires LabelPreprocess to have run.
   LabelVolume workingGridGeometry() const { return state_.grid.geometryIn(input_); }

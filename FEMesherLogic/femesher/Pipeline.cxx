@@ -21,6 +21,32 @@ Status runGuarded(const std::function<void()>& body) {
   return Status::ok();
 }
 
+namespace {
+
+/// The result of a run that went through Fidelity (or Quality when fidelity is off).
+PipelineResult collect(MeshingRun& run, RunContext& ctx,
+                       std::chrono::steady_clock::time_point start) {
+  PipelineResult result;
+  MeshingState& s = run.state();
+  result.counts = run.reportCounts();
+  result.warnings = ctx.warnings();
+  result.totalSeconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.reportJson = runReportJson(run, result.warnings, result.totalSeconds);
+  result.timings = s.timings;
+  result.droppedLabels = s.grid.droppedLabels;
+  result.excludedLabels = s.grid.excludedLabels;
+  result.sizingField = s.sizingField;
+  if (s.sizingField) result.sizingGeometry = run.workingGridGeometry();
+  result.hasFidelity = s.hasFidelity;
+  result.mesh = std::move(s.mesh);
+  result.quality = std::move(s.quality);
+  result.fidelity = std::move(s.fidelity);
+  return result;
+}
+
+}  // namespace
+
 Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParameters& params,
                                    RunContext& ctx) {
   const auto start = std::chrono::steady_clock::now();
@@ -28,21 +54,22 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
   const Status status = runGuarded([&] {
     MeshingRun run(input, params, ctx);
     run.runThrough(StageId::Fidelity);
-    MeshingState& s = run.state();
-    result.counts = run.reportCounts();
-    result.warnings = ctx.warnings();
-    result.totalSeconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    result.reportJson = runReportJson(run, result.warnings, result.totalSeconds);
-    result.timings = s.timings;
-    result.droppedLabels = s.grid.droppedLabels;
-    result.excludedLabels = s.grid.excludedLabels;
-    result.sizingField = s.sizingField;
-    if (s.sizingField) result.sizingGeometry = run.workingGridGeometry();
-    result.hasFidelity = s.hasFidelity;
-    result.mesh = std::move(s.mesh);
-    result.quality = std::move(s.quality);
-    result.fidelity = std::move(s.fidelity);
+    result = collect(run, ctx, start);
+  });
+  if (!status) return status;
+  return result;
+}
+
+Result<PipelineResult> optimizeMesh(const LabelVolume& labels, const TetMesh& mesh,
+                                    const MeshingParameters& params, RunContext& ctx) {
+  const auto start = std::chrono::steady_clock::now();
+  PipelineResult result;
+  const Status status = runGuarded([&] {
+    MeshingRun run(labels, params, ctx);
+    run.runThrough(StageId::IndicatorFunctions);
+    run.adoptVolumeMesh(mesh);
+    run.runThrough(StageId::Fidelity);
+    result = collect(run, ctx, start);
   });
   if (!status) return status;
   return result;

@@ -43,6 +43,12 @@ struct PipelineResult {
 Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParameters& params,
                                    RunContext& ctx);
 
+/// Improves an existing labelled tet mesh (physical LPS, user labels; e.g. read by readMesh) with
+/// the Optimize stage, against the smooth interfaces of the label map it was made from, then
+/// measures it (Quality, Fidelity): `femesher optimize`. The result's mesh is the improved one.
+Result<PipelineResult> optimizeMesh(const LabelVolume& labels, const TetMesh& mesh,
+                                    const MeshingParameters& params, RunContext& ctx);
+
 /// Runs `body`, turning femesher::Error, std::bad_alloc and other exceptions into a Status with a
 /// message a user can act on (the boundary every entry point into the stages uses).
 Status runGuarded(const std::function<void()>& body);

@@ -153,6 +153,23 @@ check({s["name"] for s in rep["stages"]} >= {"LabelPreprocess", "VolumeMesh"}, "
 check(rep["parameters"]["target_edge_length"] == 1.5, "report records the parameters")
 check(rep["input"]["space"] == "LPS", "report records the input geometry in LPS")
 
+# --- optimize an existing mesh -----------------------------------------------------------------
+raw = os.path.join(TMP, "ball_raw.vtu")
+r = run("mesh", small, "-o", raw, "--set", "target_edge_length=1.5", "--set", "optimize_min_dihedral=0")
+check(r.returncode == 0, "mesh without the Optimize stage")
+improved = os.path.join(TMP, "ball_improved.msh")
+opt_report = os.path.join(TMP, "optimize.json")
+r = run("optimize", raw, "--labels", small, "-o", improved, "--report", opt_report, "-q")
+check(r.returncode == 0 and os.path.exists(improved), "optimize writes the improved mesh: " + r.stderr[-300:])
+orep = json.load(open(opt_report)) if os.path.exists(opt_report) else {}
+check([s["name"] for s in orep.get("stages", [])][-3:] == ["Optimize", "Quality", "Fidelity"],
+      "optimize runs Optimize, Quality and Fidelity on the given mesh")
+check(orep.get("counts", {}).get("optimize_min_dihedral_after", -1) >=
+      orep.get("counts", {}).get("optimize_min_dihedral_before", 0), "optimize never lowers the worst angle")
+r = run("optimize", raw, "-o", os.path.join(TMP, "nolabels.vtu"))
+check(r.returncode == EXIT["invalid-argument"] and not os.path.exists(os.path.join(TMP, "nolabels.vtu")),
+      "optimize without --labels is a clear error")
+
 # --- parameter files ---------------------------------------------------------------------------
 pfile = os.path.join(TMP, "params.json")
 r = run("mesh", small, "--save-parameters", pfile, "--set", "min_voxels=3", "--preset", "coarse")
