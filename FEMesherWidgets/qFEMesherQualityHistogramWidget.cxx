@@ -181,8 +181,13 @@ qFEMesherQualityHistogramWidget::qFEMesherQualityHistogramWidget(QWidget* parent
   fidelity_->verticalHeader()->setVisible(false);
   fidelity_->setEditTriggers(QAbstractItemView::NoEditTriggers);
   fidelity_->horizontalHeader()->setStretchLastSection(true);
-  fidelity_->setToolTip(tr("Agreement of the mesh with the input labels. Dice 1 = identical; "
-                           "volume error = (mesh - voxels) / voxels."));
+  fidelity_->setToolTip(
+      tr("Agreement of the mesh with the input labels. Dice = 2 x the volume the material's tets "
+         "share with its voxels / (tets' volume + voxels' volume): 1 = the same volume in the same "
+         "place. Volume error = (mesh - voxels) / voxels: the amount, not the place."));
+  fidelity_->horizontalHeaderItem(3)->setToolTip(
+      tr("Volume Dice (the voxel-centre agreement, which only counts voxel centres, is in the run "
+         "report as voxel_centre_dice)"));
   fidelityColumn->addWidget(fidelity_, 1);
   fidelityColumn->addWidget(distances_);
   connect(combo_, QOverload<int>::of(&QComboBox::currentIndexChanged), this,

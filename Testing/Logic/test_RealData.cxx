@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // `femesher mesh` on every real label map in FEMESHER_DATA_DIR and on the phantom, with the
 // foundation's acceptance invariants: labels present, conformal, no inverted tets, interfaces
-// between different materials, Dice >= 0.85 for labels of >= 1,000 voxels, points within one voxel
-// of the labels' physical extent.
+// between different materials, voxel-centre agreement >= 0.85 (0.9) and volume Dice >= 0.85 for
+// labels of >= 1,000 voxels, points within one voxel of the labels' physical extent.
 #include "MeshInvariants.h"
 
 #include <femesher/Phantom.h>
@@ -26,10 +26,13 @@ using namespace femesher::testing;
 
 namespace {
 
+/// Volume Dice floor for labels of >= 1,000 voxels on every real volume.
+constexpr double kMinVolumeDice = 0.85;
+
 struct Case {
   std::string file;
   int64_t minVoxels;
-  double minDice = 0.85;  ///< for labels of >= 1,000 voxels
+  double minDice = 0.85;  ///< voxel-centre agreement, for labels of >= 1,000 voxels
 };
 
 std::ostream& operator<<(std::ostream& os, const Case& c) { return os << c.file; }
@@ -58,8 +61,14 @@ void checkVolume(const LabelVolume& v, const MeshingParameters& p, const std::st
   ASSERT_TRUE(r->hasFidelity);
   std::string summary;
   for (const auto& mf : r->fidelity.materials) {
-    if (mf.voxels >= 1000)
-      EXPECT_GE(mf.dice, minDice) << name << ": label " << mf.label << " (" << mf.voxels << " voxels)";
+    if (mf.voxels >= 1000) {
+      // The voxel-centre agreement (what the surface refinement aims at) and, honestly, the
+      // volume Dice (today's floor on thin labels: the knee's lesions, 0.86).
+      EXPECT_GE(mf.voxelCentreDice, minDice)
+          << name << ": label " << mf.label << " (" << mf.voxels << " voxels)";
+      EXPECT_GE(mf.dice, kMinVolumeDice)
+          << name << ": label " << mf.label << " (" << mf.voxels << " voxels), volume Dice";
+    }
     char buf[96];
     std::snprintf(buf, sizeof buf, " %d:%.3f", mf.label, mf.dice);
     summary += buf;

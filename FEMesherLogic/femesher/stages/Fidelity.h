@@ -2,9 +2,14 @@
 #pragma once
 /// \file Fidelity.h
 /// Agreement of a mesh with the label map it came from.
-///  - Per material: voxel volume, mesh volume, relative volume error, Dice.
-///    Dice compares, over all voxel centres, the voxel's label with the label of the tet that
-///    contains the centre (background when none): 2|A∩B| / (|A|+|B|).
+///  - Per material: voxel volume, mesh volume, relative volume error, and the volume Dice
+///    2|M∩L| / (|M|+|L|) of the material's tets M and its voxels L (each voxel a box of the voxel
+///    size): the overlap is exact in voxels that no mesh triangle crosses and sampled on a 4x4x4
+///    stratified sub-grid in the others (stable to about 0.0005 on the knee's lesions).
+///  - The voxel-centre agreement, a second figure: over all voxel centres, the voxel's label
+///    against the label of the tet that contains the centre. It is not a volume measure (a
+///    surface passing through every boundary voxel's centre scores 1 while thin layers lose
+///    volume), kept because it says where mesh and labels disagree (`--raster`).
 ///  - Boundary distance, in voxels (of the smallest spacing): mesh->labels = distance from points
 ///    sampled on the mesh's interface triangles to the nearest voxel boundary face between two
 ///    different labels; labels->mesh = from voxel boundary face centres to the nearest mesh
@@ -28,7 +33,9 @@ struct MaterialFidelity {
   double voxelVolume = 0;     ///< mm^3
   double meshVolume = 0;      ///< mm^3, sum of tet volumes
   double volumeError = 0;     ///< (mesh - voxel) / voxel
-  double dice = 0;
+  double overlapVolume = 0;   ///< mm^3 shared by the material's tets and its voxels
+  double dice = 0;            ///< volume Dice 2 overlap / (voxelVolume + meshVolume)
+  double voxelCentreDice = 0; ///< voxel-centre agreement (see the file comment)
   size_t tets = 0;
 };
 

@@ -1,0 +1,274 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/Parallel.h>
+#include <femesher/RunContext.h>
+#include <femesher/stages/internal/TetRaster.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+namespace femesher {
+
+namespace {
+
+constexpr double kBaryTol = 1e-9;  ///< barycentric tolerance of the containment test
+
+/// Outward normal lexicographically positive (see the header).
+bool lexPositive(const double* n) {
+  const double s = std::max({std::fabs(n[0]), std::fabs(n[1]), std::fabs(n[2])}) * 1e-9;
+  for (int k = 0; k < 3; ++k) {
+    if (n[k] > s) return true;
+    if (n[k] < -s) return false;
+  }
+  return false;
+}
+
+/// Barycentric coordinates of one tet as affine functions of the (continuous) voxel index.
+struct TetFrame {
+  Vec3 a;                  ///< vertex 0
+  double g[4][3];          ///< gradients of λ1..λ3 (row 0 unused)
+  bool keepOnFace[4];      ///< a point on face f belongs to this tet
+  bool flat = false;       ///< no interior: contains nothing
+  bool contains(const Vec3& p) const {
+    const double px = p[0] - a[0], py = p[1] - a[1], pz = p[2] - a[2];
+    const double l1 = g[1][0] * px + g[1][1] * py + g[1][2] * pz;
+    const double l2 = g[2][0] * px + g[2][1] * py + g[2][2] * pz;
+    const double l3 = g[3][0] * px + g[3][1] * py + g[3][2] * pz;
+    return ok(l1, 1) && ok(l2, 2) && ok(l3, 3) && ok(1.0 - l1 - l2 - l3, 0);
+  }
+  bool ok(double l, int f) const { return l > kBaryTol || (l >= -kBaryTol && keepOnFace[f]); }
+};
+
+TetFrame tetFrame(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  TetFrame f;
+  f.a = a;
+  const double m[9] = {b[0] - a[0], c[0] - a[0], d[0] - a[0], b[1] - a[1], c[1] - a[1],
+                       d[1] - a[1], b[2] - a[2], c[2] - a[2], d[2] - a[2]};
+  const double det = m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6]) +
+                     m[2] * (m[3] * m[7] - m[4] * m[6]);
+  double scale = 0;
+  for (double x : m) scale += std::fabs(x);
+  if (!(std::fabs(det) > 1e-14 * scale * scale * scale)) {
+    f.flat = true;
+    return f;
+  }
+  const double g[4][3] = {{0, 0, 0},
+                          {(m[4] * m[8] - m[5] * m[7]) / det, (m[2] * m[7] - m[1] * m[8]) / det,
+                           (m[1] * m[5] - m[2] * m[4]) / det},
+                          {(m[5] * m[6] - m[3] * m[8]) / det, (m[0] * m[8] - m[2] * m[6]) / det,
+                           (m[2] * m[3] - m[0] * m[5]) / det},
+                          {(m[3] * m[7] - m[4] * m[6]) / det, (m[1] * m[6] - m[0] * m[7]) / det,
+                           (m[0] * m[4] - m[1] * m[3]) / det}};
+  std::copy(&g[0][0], &g[0][0] + 12, &f.g[0][0]);
+  for (int k = 1; k < 4; ++k) {
+    const double n[3] = {-g[k][0], -g[k][1], -g[k][2]};
+    f.keepOnFace[k] = lexPositive(n);
+  }
+  const double n0[3] = {g[1][0] + g[2][0] + g[3][0], g[1][1] + g[2][1] + g[3][1],
+                        g[1][2] + g[2][2] + g[3][2]};
+  f.keepOnFace[0] = lexPositive(n0);
+  return f;
+}
+
+/// The voxel range [lo, hi] (clamped to the grid) of the tet's index-space bounding box along
+/// axis k, `s` sub-samples per voxel: samples X with (X + 0.5) / s - 0.5 in [mn, mx].
+void sampleRange(double mn, double mx, int n, int s, int& lo, int& hi) {
+  const double eps = 1e-6;
+  lo = std::max(0, int(std::max(-1.0, std::ceil(s * (mn + 0.5) - 0.5 - eps))));
+  hi = std::min(n * s - 1, int(std::min(double(n) * s, std::floor(s * (mx + 0.5) - 0.5 + eps))));
+}
+
+/// Calls fn(t, vi) for every voxel centre vi in z range [zs, ze] that tet t contains.
+template <class Fn>
+void forEachCentre(const LabelVolume& labels, const TetMesh& mesh, const std::vector<Vec3>& idx,
+                   int zs, int ze, RunContext* ctx, Fn&& fn) {
+  const auto& dims = labels.dims;
+  for (size_t t = 0; t < mesh.tets.size(); ++t) {
+    if ((t & 0xFFFF) == 0 && ctx && ctx->isCanceled()) return;
+    const auto& T = mesh.tets[t];
+    const Vec3 &a = idx[size_t(T[0])], &b = idx[size_t(T[1])], &c = idx[size_t(T[2])],
+               &d = idx[size_t(T[3])];
+    int lo[3], hi[3];
+    for (int k = 0; k < 3; ++k)
+      sampleRange(std::min({a[k], b[k], c[k], d[k]}), std::max({a[k], b[k], c[k], d[k]}), dims[k],
+                  1, lo[k], hi[k]);
+    lo[2] = std::max(lo[2], zs);
+    hi[2] = std::min(hi[2], ze);
+    if (lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2]) continue;
+    const TetFrame f = tetFrame(a, b, c, d);
+    if (f.flat) continue;
+    for (int z = lo[2]; z <= hi[2]; ++z)
+      for (int y = lo[1]; y <= hi[1]; ++y)
+        for (int x = lo[0]; x <= hi[0]; ++x)
+          if (f.contains({double(x), double(y), double(z)})) fn(t, labels.index(x, y, z));
+  }
+}
+
+/// A deterministic offset in [0, 1) for sub-sample (X, Y, Z) along `axis` (stratified sampling:
+/// one point at a random place in each sub-cell, so the sub-grid does not alias with voxel faces).
+double jitter(int X, int Y, int Z, int axis) {
+  uint64_t h = uint64_t(uint32_t(X)) * 0x9E3779B97F4A7C15ull ^ uint64_t(uint32_t(Y)) * 0xC2B2AE3D27D4EB4Full ^
+               uint64_t(uint32_t(Z)) * 0x165667B19E3779F9ull ^ uint64_t(axis + 1) * 0x27D4EB2F165667C5ull;
+  h ^= h >> 31;
+  h *= 0x7FB5D329728EA185ull;
+  h ^= h >> 27;
+  return double(h >> 11) * (1.0 / 9007199254740992.0);
+}
+
+/// Calls fn(t, vi) for every sub-sample of a voxel vi with cut[vi], in z range [zs, ze], that tet
+/// t contains: s x s x s stratified samples per voxel.
+template <class Fn>
+void forEachCutSample(const LabelVolume& labels, const TetMesh& mesh, const std::vector<Vec3>& idx,
+                      const std::vector<uint8_t>& cut, int s, int zs, int ze, RunContext* ctx,
+                      Fn&& fn) {
+  const auto& dims = labels.dims;
+  for (size_t t = 0; t < mesh.tets.size(); ++t) {
+    if ((t & 0xFFFF) == 0 && ctx && ctx->isCanceled()) return;
+    const auto& T = mesh.tets[t];
+    const Vec3 &a = idx[size_t(T[0])], &b = idx[size_t(T[1])], &c = idx[size_t(T[2])],
+               &d = idx[size_t(T[3])];
+    int lo[3], hi[3], slo[3], shi[3];  // voxel range and sub-sample cell range of the tet
+    for (int k = 0; k < 3; ++k) {
+      const double mn = std::min({a[k], b[k], c[k], d[k]}), mx = std::max({a[k], b[k], c[k], d[k]});
+      lo[k] = std::max(0, int(std::floor(mn + 0.5)));
+      hi[k] = std::min(dims[k] - 1, int(std::floor(mx + 0.5)));
+      slo[k] = int(std::floor(s * (mn + 0.5)));
+      shi[k] = int(std::floor(s * (mx + 0.5)));
+    }
+    lo[2] = std::max(lo[2], zs);
+    hi[2] = std::min(hi[2], ze);
+    if (lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2]) continue;
+    TetFrame f;
+    bool framed = false;
+    for (int z = lo[2]; z <= hi[2]; ++z)
+      for (int y = lo[1]; y <= hi[1]; ++y)
+        for (int x = lo[0]; x <= hi[0]; ++x) {
+          const size_t vi = labels.index(x, y, z);
+          if (!cut[vi]) continue;
+          if (!framed) {
+            f = tetFrame(a, b, c, d);
+            framed = true;
+          }
+          if (f.flat) break;
+          // The sub-sample cells of this voxel that the tet's box reaches.
+          const int z0 = std::max(z * s, slo[2]), z1 = std::min(z * s + s - 1, shi[2]);
+          const int y0 = std::max(y * s, slo[1]), y1 = std::min(y * s + s - 1, shi[1]);
+          const int x0 = std::max(x * s, slo[0]), x1 = std::min(x * s + s - 1, shi[0]);
+          for (int Z = z0; Z <= z1; ++Z)
+            for (int Y = y0; Y <= y1; ++Y)
+              for (int X = x0; X <= x1; ++X) {
+                const Vec3 p{(X + jitter(X, Y, Z, 0)) / s - 0.5, (Y + jitter(X, Y, Z, 1)) / s - 0.5,
+                             (Z + jitter(X, Y, Z, 2)) / s - 0.5};
+                if (f.contains(p)) fn(t, vi);
+              }
+        }
+  }
+}
+
+std::vector<Vec3> indexPositions(const LabelVolume& labels, const TetMesh& mesh, int threads) {
+  std::vector<Vec3> idx(mesh.points.size());
+  parallelFor(idx.size(), threads, [&](size_t b, size_t e, int) {
+    for (size_t i = b; i < e; ++i) idx[i] = labels.physicalToIndex(mesh.points[i]);
+  });
+  return idx;
+}
+
+/// Voxels crossed by the bounding box of an interface or boundary triangle of the mesh.
+std::vector<uint8_t> cutVoxels(const LabelVolume& labels, const std::vector<InterfaceTriangle>& tris,
+                               const std::vector<Vec3>& idx) {
+  std::vector<uint8_t> cut(labels.voxelCount(), 0);
+  for (const InterfaceTriangle& tri : tris) {
+    int lo[3], hi[3];
+    for (int k = 0; k < 3; ++k) {
+      double mn = idx[size_t(tri.v[0])][k], mx = mn;
+      for (int q = 1; q < 3; ++q) {
+        mn = std::min(mn, idx[size_t(tri.v[q])][k]);
+        mx = std::max(mx, idx[size_t(tri.v[q])][k]);
+      }
+      lo[k] = std::max(0, int(std::ceil(mn - 0.5 - 1e-6)));
+      hi[k] = std::min(labels.dims[k] - 1, int(std::floor(mx + 0.5 + 1e-6)));
+    }
+    for (int z = lo[2]; z <= hi[2]; ++z)
+      for (int y = lo[1]; y <= hi[1]; ++y)
+        for (int x = lo[0]; x <= hi[0]; ++x) cut[labels.index(x, y, z)] = 1;
+  }
+  return cut;
+}
+
+}  // namespace
+
+LabelIndex::LabelIndex(const std::vector<int32_t>& sorted) : ids_(sorted) {
+  lo_ = sorted.empty() ? 0 : sorted.front();
+  const int64_t range = sorted.empty() ? 0 : int64_t(sorted.back()) - lo_ + 1;
+  if (range <= (int64_t(1) << 22)) {
+    table_.assign(size_t(range), 0);
+    for (size_t k = 0; k < sorted.size(); ++k) table_[size_t(int64_t(sorted[k]) - lo_)] = uint16_t(k);
+  } else {
+    for (size_t k = 0; k < sorted.size(); ++k) map_[sorted[k]] = uint16_t(k);
+  }
+}
+
+std::vector<uint16_t> rasterize(const LabelVolume& labels, const TetMesh& mesh,
+                                const std::vector<uint16_t>& tetValue, uint16_t background,
+                                int threads, RunContext* ctx) {
+  const std::vector<Vec3> idx = indexPositions(labels, mesh, threads);
+  std::vector<uint16_t> meshLabel(labels.voxelCount(), background);
+  const int nz = labels.dims[2];
+  const int slabs = std::min(nz, resolveThreads(threads) * 8);
+  parallelFor(size_t(slabs), threads, [&](size_t s0, size_t s1, int) {
+    for (size_t sl = s0; sl < s1; ++sl) {
+      const int zs = int(size_t(nz) * sl / size_t(slabs));
+      const int ze = int(size_t(nz) * (sl + 1) / size_t(slabs)) - 1;
+      forEachCentre(labels, mesh, idx, zs, ze, ctx,
+                    [&](size_t t, size_t vi) { meshLabel[vi] = tetValue[t]; });
+    }
+  });
+  return meshLabel;
+}
+
+std::vector<double> overlapVolumes(const LabelVolume& labels, const TetMesh& mesh,
+                                   const std::vector<InterfaceTriangle>& tris,
+                                   const LabelIndex& index, const std::vector<uint16_t>& tetIndex,
+                                   const std::vector<uint16_t>& centre, int samplesPerAxis,
+                                   int threads, RunContext* ctx) {
+  const int s = std::max(1, samplesPerAxis);
+  const std::vector<Vec3> idx = indexPositions(labels, mesh, threads);
+  const std::vector<uint8_t> cut = cutVoxels(labels, tris, idx);
+  const size_t L = index.size();
+  const int nz = labels.dims[2];
+  const size_t sliceSize = size_t(labels.dims[0]) * size_t(labels.dims[1]);
+  // Per z-slice: whole voxels (uncut, centre agrees) and sub-samples (cut voxels) that agree.
+  std::vector<std::vector<uint64_t>> whole(static_cast<size_t>(nz)), samples(static_cast<size_t>(nz));
+  const int slabs = std::min(nz, resolveThreads(threads) * 8);
+  parallelFor(size_t(slabs), threads, [&](size_t s0, size_t s1, int) {
+    for (size_t sl = s0; sl < s1; ++sl) {
+      const int zs = int(size_t(nz) * sl / size_t(slabs));
+      const int ze = int(size_t(nz) * (sl + 1) / size_t(slabs)) - 1;
+      std::vector<uint64_t> w(L, 0), smp(L, 0);
+      for (size_t vi = size_t(zs) * sliceSize; vi < size_t(ze + 1) * sliceSize; ++vi) {
+        if (cut[vi]) continue;
+        const uint16_t l = index(labels.labels[vi]);
+        if (l != 0 && centre[vi] == l) ++w[l];
+      }
+      forEachCutSample(labels, mesh, idx, cut, s, zs, ze, ctx, [&](size_t t, size_t vi) {
+        const uint16_t l = tetIndex[t];
+        if (l == index(labels.labels[vi])) ++smp[l];
+      });
+      whole[size_t(zs)] = std::move(w);
+      samples[size_t(zs)] = std::move(smp);
+    }
+  });
+  const Vec3& sp = labels.spacing;
+  const double voxel = sp[0] * sp[1] * sp[2], sample = voxel / (double(s) * s * s);
+  std::vector<uint64_t> w(L, 0), smp(L, 0);
+  for (int z = 0; z < nz; ++z)
+    for (size_t k = 0; k < L && !whole[size_t(z)].empty(); ++k) {
+      w[k] += whole[size_t(z)][k];
+      smp[k] += samples[size_t(z)][k];
+    }
+  std::vector<double> overlap(L, 0.0);
+  for (size_t k = 1; k < L; ++k) overlap[k] = double(w[k]) * voxel + double(smp[k]) * sample;
+  return overlap;
+}
+
+}  // namespace femesher
