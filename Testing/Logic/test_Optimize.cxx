@@ -2,6 +2,7 @@
 // Stage 10 (Optimize): sliver removal keeps every interface between materials exactly, never
 // lowers the worst angle, peels only thin boundary tets, smooths interior vertices.
 #include "MeshInvariants.h"
+#include "TetMeasures.h"
 
 #include <femesher/Phantom.h>
 #include <femesher/Pipeline.h>
@@ -16,16 +17,11 @@
 
 using namespace femesher;
 using namespace femesher::testing;
+using femesher::test::labelVolumes;
+using femesher::test::minOver;
+using femesher::test::Tets;
 
 namespace {
-
-using Tets = std::vector<std::array<int32_t, 4>>;
-
-double minOver(const std::vector<Vec3>& p, const Tets& t) {
-  double q = 1e300;
-  for (const auto& T : t) q = std::min(q, tetMinDihedral(p[T[0]], p[T[1]], p[T[2]], p[T[3]]));
-  return q;
-}
 
 size_t countBelow(const std::vector<Vec3>& p, const Tets& t, double deg) {
   size_t n = 0;
@@ -242,19 +238,6 @@ struct PlaneInterfaceMesh {
           }
   }
 };
-
-std::map<int32_t, double> labelVolumes(const std::vector<Vec3>& p, const Tets& t,
-                                       const std::vector<int32_t>& labels) {
-  std::map<int32_t, double> v;
-  for (size_t i = 0; i < t.size(); ++i) {
-    const Vec3 &a = p[t[i][0]], &b = p[t[i][1]], &c = p[t[i][2]], &d = p[t[i][3]];
-    const Vec3 u{b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w{c[0] - a[0], c[1] - a[1], c[2] - a[2]},
-        x{d[0] - a[0], d[1] - a[1], d[2] - a[2]};
-    v[labels[i]] += (u[0] * (w[1] * x[2] - w[2] * x[1]) - u[1] * (w[0] * x[2] - w[2] * x[0]) +
-                     u[2] * (w[0] * x[1] - w[1] * x[0])) / 6;
-  }
-  return v;
-}
 
 }  // namespace
 

@@ -197,6 +197,59 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
   return true;
 }
 
+bool flipInterfaceEdge(Editor& m, uint32_t t, const OptimizeInterfaces& in,
+                       std::vector<uint32_t>& fresh) {
+  const auto T = m.tets[t];
+  const int own = m.labels[t];
+  int64_t nb[4];
+  for (int k = 0; k < 4; ++k) {
+    const auto f = m.face(t, k);
+    nb[k] = m.across(t, f[0], f[1], f[2]);
+    if (nb[k] < 0) return false;  // outer boundary: peeling's business
+  }
+  std::vector<uint32_t> ring;
+  for (int i = 0; i < 4; ++i)
+    for (int j = i + 1; j < 4; ++j) {
+      // Faces opposite c = T[i] and d = T[j] share the edge (a, b); both on the interface with
+      // one other material, the other two faces inside t's material.
+      const int other = m.labels[size_t(nb[i])];
+      if (other == own || m.labels[size_t(nb[j])] != other) continue;
+      int32_t ab[2], n = 0;
+      bool inside = true;
+      for (int k = 0; k < 4; ++k)
+        if (k != i && k != j) {
+          ab[n++] = T[size_t(k)];
+          inside &= m.labels[size_t(nb[k])] == own;
+        }
+      if (!inside) continue;
+      m.tetsOnEdge(ab[0], ab[1], ring);
+      if (std::any_of(ring.begin(), ring.end(),
+                      [&](uint32_t s) { return s != t && m.labels[s] != other; }))
+        continue;
+      // The new interface triangles (b, c, d) and (a, c, d): within the facet distance bound.
+      const int lo = std::min(own, other), hi = std::max(own, other);
+      bool near = true;
+      for (int k = 0; k < 2 && near; ++k) {
+        const InterfaceFace f{{ab[1 - k], T[size_t(i)], T[size_t(j)]}, lo, hi, {0, 0, 0}};
+        const double d = centroidDistance(m, in, f);
+        near = d >= 0 && d <= kFacetShare * in.facetDistance;
+      }
+      const double v = m.volume(t);
+      if (!near || std::fabs(m.movedVolume[size_t(own)] - v) > kVolumeBudget * m.startVolume[size_t(own)] ||
+          std::fabs(m.movedVolume[size_t(other)] + v) > kVolumeBudget * m.startVolume[size_t(other)])
+        continue;
+      // t joins the other material: (a, b) is then inside it, and removing that edge must help.
+      m.relabel(t, other);
+      if (removeEdge(m, t, ab[0], ab[1], fresh)) {
+        m.movedVolume[size_t(own)] -= v;
+        m.movedVolume[size_t(other)] += v;
+        return true;
+      }
+      m.relabel(t, own);
+    }
+  return false;
+}
+
 }  // namespace optimize_detail
 
 OptimizeInterfaces indicatorInterfaces(const IndicatorField& field, double facetDistanceVoxels) {

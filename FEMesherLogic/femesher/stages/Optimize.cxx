@@ -97,13 +97,6 @@ bool smoothVertex(Editor& m, int32_t v, const MoveConstraint* constraint) {
   return q0 > qStart + kEps;
 }
 
-}  // namespace optimize_detail
-
-namespace {
-
-using namespace optimize_detail;
-constexpr double kRadToDeg = 57.29577951308232;
-
 /// Edge removal: re-triangulates the ring of edge (u, v) of tet t when that raises the ring's
 /// worst tet. Returns true when applied.
 bool removeEdge(Editor& m, uint32_t t, int32_t u, int32_t v, std::vector<uint32_t>& fresh) {
@@ -194,6 +187,13 @@ bool removeEdge(Editor& m, uint32_t t, int32_t u, int32_t v, std::vector<uint32_
   }
   return true;
 }
+
+}  // namespace optimize_detail
+
+namespace {
+
+using namespace optimize_detail;
+constexpr double kRadToDeg = 57.29577951308232;
 
 /// 2-to-3 flip across face k of t (the face opposite T[k]) when both tets are of one material.
 bool flipFace(Editor& m, uint32_t t, int k, std::vector<uint32_t>& fresh) {
@@ -436,6 +436,11 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
           ++r.faceFlips;
           changed = true;
         }
+      if (!changed && params.moveInterfaces && interfaces.enabled() &&
+          flipInterfaceEdge(m, t, interfaces, fresh)) {
+        ++r.interfaceFlips;
+        changed = true;
+      }
       if (!changed && params.smooth) {
         for (int32_t v : m.tets[t])
           if (moveVertex(m, v, params, interfaces, r)) {
@@ -491,6 +496,7 @@ ReportCounts reportCounts(const OptimizeResult& r) {
           {"optimize_smoothed_vertices", double(r.smoothedVertices)},
           {"optimize_interface_vertex_moves", double(r.interfaceVertices)},
           {"optimize_triple_line_vertex_moves", double(r.tripleLineVertices)},
+          {"optimize_interface_flips", double(r.interfaceFlips)},
           {"optimize_peeled_tets", double(r.peeledTets)},
           {"optimize_passes", double(r.passes)}};
 }

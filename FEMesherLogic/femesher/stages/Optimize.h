@@ -2,10 +2,10 @@
 #pragma once
 /// \file Optimize.h
 /// Stage 10 ("Optimize"): removes slivers and other flat tets left by TetGen, towards a minimum
-/// dihedral angle target, without changing any interface between two materials.
+/// dihedral angle target, keeping the mesh conformal and its interfaces near the smooth ones.
 ///
 /// Works on the tets whose minimum dihedral angle is below `targetMinDihedral`, worst first, with
-/// four local operations. Each is applied only when it raises the smallest minimum dihedral angle
+/// these local operations. Each is applied only when it raises the smallest minimum dihedral angle
 /// of the tets it replaces or moves (so the worst angle of the mesh never decreases and the
 /// process terminates):
 ///  - edge removal (Shewchuk's edge removal, 3-to-2, 4-to-4, ... 7-to-10 flips): an edge whose
@@ -28,10 +28,14 @@
 ///    interface triangles and is projected back onto f_a = f_b; a vertex with three materials
 ///    around moves along its triple line and is projected onto it. Both materials' tets move
 ///    with it, so the mesh stays conformal. A move is kept only when it raises the worst tet of
-///    the star and every interface triangle of the star keeps its centroid within
-///    `facetDistance` of its smooth interface. Vertices with four or more materials around,
-///    and vertices of an interface on the volume's box, stay.
-/// Faces between two materials are never flipped: the interface triangulation stays TetGen's,
+///    the star (see InterfaceSmoothing.h for the distance and volume bounds). Vertices with four
+///    or more materials around, and vertices of an interface on the volume's box, stay;
+///  - interface edge flips: a flat tet with two faces on the interface with one other material
+///    (its other faces inside its own) joins that material when the edge it leaves inside it can
+///    then be removed (the edge removal above): the two interface triangles on that edge become
+///    the tet's two other faces.
+/// Interface triangles change only by these moves and flips, which relabel or re-triangulate
+/// whole tets: every interface triangle stays shared by the tets of both sides,
 /// so the mesh stays conformal. The result is
 /// deterministic (sequential, ordered by quality and index). All positions in mm (any frame:
 /// the operations are rigid-motion invariant).
@@ -97,6 +101,7 @@ struct OptimizeResult {
   size_t smoothedVertices = 0;  ///< interior (and flat outer-patch) vertex moves
   size_t interfaceVertices = 0;   ///< interface vertex moves (two materials)
   size_t tripleLineVertices = 0;  ///< triple-line vertex moves
+  size_t interfaceFlips = 0;      ///< interface edge flips
   size_t peeledTets = 0;        ///< flat boundary tets removed
   int passes = 0;               ///< rounds run
 };
@@ -104,7 +109,7 @@ struct OptimizeResult {
 /// Report figures: optimize_tets_below_target_before/after, optimize_tets_below_5deg_before/after,
 /// optimize_min_dihedral_before/after, optimize_edge_removals, optimize_face_flips,
 /// optimize_smoothed_vertices, optimize_interface_vertex_moves, optimize_triple_line_vertex_moves,
-/// optimize_peeled_tets, optimize_passes.
+/// optimize_interface_flips, optimize_peeled_tets, optimize_passes.
 ReportCounts reportCounts(const OptimizeResult& result);
 
 /// Minimum dihedral angle of a tet in degrees; -1 when it is not positively oriented (or flat).

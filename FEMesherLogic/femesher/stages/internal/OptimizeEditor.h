@@ -103,6 +103,11 @@ class Editor {
         if (tets[t][size_t(k)] != v && constrained(t, k)) st = 1;
     return st == 1;
   }
+  void relabel(uint32_t t, int32_t label) {
+    --perLabel[size_t(labels[t])];
+    labels[t] = label;
+    ++perLabel[size_t(label)];
+  }
   void kill(uint32_t t) {
     alive[t] = 0;
     --perLabel[size_t(labels[t])];
@@ -134,6 +139,15 @@ struct MoveConstraint {
 /// Moves vertex v when that raises the worst tet of its star (Laplacian candidate, then a line
 /// search along the worst tet's gradient), within `constraint` when not null. True when moved.
 bool smoothVertex(Editor& m, int32_t v, const MoveConstraint* constraint);
+
+/// Edge removal (Optimize.h): re-triangulates the ring of edge (u, v) of tet t, all of t's
+/// material, when that raises the ring's worst tet; the new tets go to `fresh`. True when applied.
+bool removeEdge(Editor& m, uint32_t t, int32_t u, int32_t v, std::vector<uint32_t>& fresh);
+
+/// Interface edge flip (InterfaceSmoothing.h) at tet t; the new tets go to `fresh`. True when
+/// applied.
+bool flipInterfaceEdge(Editor& m, uint32_t t, const OptimizeInterfaces& interfaces,
+                       std::vector<uint32_t>& fresh);
 
 /// Moves an interface or triple-line vertex along its interface (InterfaceSmoothing.h); false
 /// when v is of another class or no move helps. `kind` gets 2 (interface) or 3 (triple line).
