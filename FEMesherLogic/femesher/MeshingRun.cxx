@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/MeshingRun.h>
+#include <femesher/stages/InterfaceSmoothing.h>
 
 #include <algorithm>
 #include <chrono>
@@ -227,7 +228,12 @@ void MeshingRun::optimize() {
   OptimizeParameters op = params_.optimize;
   op.voxelSize = state_.grid.minSpacing();
   VolumeMeshResult& vm = state_.volumeMesh;
-  const OptimizeResult& opt = state_.optimize = optimizeTetMesh(vm.points, vm.tets, vm.labels, op, ctx_);
+  // The interfaces the mesh approximates, within the boundary stage's facet distance.
+  const OptimizeInterfaces interfaces =
+      state_.field ? indicatorInterfaces(*state_.field, params_.boundary.facetDistance)
+                   : OptimizeInterfaces{};
+  const OptimizeResult& opt = state_.optimize =
+      optimizeTetMesh(vm.points, vm.tets, vm.labels, op, interfaces, ctx_);
   ctx_.debug("Optimize: " + std::to_string(opt.tetsBelowTargetBefore) + " -> " +
              std::to_string(opt.tetsBelowTargetAfter) + " tets below target, min dihedral " +
              std::to_string(opt.minDihedralBefore) + " -> " + std::to_string(opt.minDihedralAfter));

@@ -134,8 +134,8 @@ const std::vector<Binding>& bindings() {
         [](const MeshingParameters& p) { return p.volume.perMaterial ? 1.0 : 0.0; });
     add({"optimize_min_dihedral", "double", "degrees", "", 0, 40, "Sliver removal target",
          "After TetGen, tets whose smallest dihedral angle is below this are improved by edge and "
-         "face flips inside one material, interior-vertex smoothing and peeling of flat boundary "
-         "tets; interfaces between materials never change. 0 = off.", true},
+         "face flips inside one material, vertex smoothing (interface vertices along their smooth "
+         "interface, see optimize_interfaces) and peeling of flat boundary tets. 0 = off.", true},
         [](MeshingParameters& p, double x) { p.optimize.targetMinDihedral = x; },
         [](const MeshingParameters& p) { return p.optimize.targetMinDihedral; });
     add({"sliver_peel_distance", "double", "voxels", "", 0, 1, "Boundary sliver peeling",
@@ -144,6 +144,13 @@ const std::vector<Binding>& bindings() {
          "surface moves by at most that much. 0 = never.", true},
         [](MeshingParameters& p, double x) { p.optimize.peelDistance = x; },
         [](const MeshingParameters& p) { return p.optimize.peelDistance; });
+    add({"optimize_interfaces", "bool", "", "", 0, 1, "Move interface vertices",
+         "The optimizer also moves vertices on an interface between two materials (along it) and "
+         "on triple lines (along the line), keeping every interface triangle within "
+         "facet_distance of the smooth interface; both sides move together, so the mesh stays "
+         "conformal. Off: interface vertices stay where TetGen left them.", true},
+        [](MeshingParameters& p, double x) { p.optimize.moveInterfaces = x != 0; },
+        [](const MeshingParameters& p) { return p.optimize.moveInterfaces ? 1.0 : 0.0; });
     add({"threads", "int", "", "", 0, 1024, "Threads", "Worker threads; 0 = all cores.", true},
         [](MeshingParameters& p, double x) { p.run.threads = int(x); },
         [](const MeshingParameters& p) { return double(p.run.threads); });

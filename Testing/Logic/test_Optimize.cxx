@@ -2,6 +2,7 @@
 // Stage 10 (Optimize): sliver removal keeps every interface between materials exactly, never
 // lowers the worst angle, peels only thin boundary tets, smooths interior vertices.
 #include "MeshInvariants.h"
+#include "TetMeasures.h"
 
 #include <femesher/Phantom.h>
 #include <femesher/Pipeline.h>
@@ -16,16 +17,11 @@
 
 using namespace femesher;
 using namespace femesher::testing;
+using femesher::test::labelVolumes;
+using femesher::test::minOver;
+using femesher::test::Tets;
 
 namespace {
-
-using Tets = std::vector<std::array<int32_t, 4>>;
-
-double minOver(const std::vector<Vec3>& p, const Tets& t) {
-  double q = 1e300;
-  for (const auto& T : t) q = std::min(q, tetMinDihedral(p[T[0]], p[T[1]], p[T[2]], p[T[3]]));
-  return q;
-}
 
 size_t countBelow(const std::vector<Vec3>& p, const Tets& t, double deg) {
   size_t n = 0;
@@ -201,4 +197,116 @@ TEST(Optimize, OffLeavesTheMeshAlone) {
   const auto r = optimizeTetMesh(p, t, labels, op, ctx);
   EXPECT_EQ(p, p0);
   EXPECT_EQ(r.passes, 0);
+}
+
+namespace {
+
+/// n^3 unit cubes on [0, n]^3, each split into six tets along its main diagonal (conformal);
+/// material 1 below z = n / 2, 2 above. The interface vertices off the box are shifted within the
+/// plane z = n / 2 (deterministically), which leaves flat tets on both sides of it.
+struct PlaneInterfaceMesh {
+  std::vector<Vec3> p;
+  Tets t;
+  std::vector<int32_t> labels;
+  explicit PlaneInterfaceMesh(int n) {
+    auto id = [n](int i, int j, int k) { return int32_t(i + (n + 1) * (j + (n + 1) * k)); };
+    for (int k = 0; k <= n; ++k)
+      for (int j = 0; j <= n; ++j)
+        for (int i = 0; i <= n; ++i) {
+          Vec3 x{double(i), double(j), double(k)};
+          if (2 * k == n && i > 0 && j > 0 && i < n && j < n) {
+            x[0] += 0.3 * std::sin(3.1 * i + 1.7 * j);
+            x[1] += 0.3 * std::cos(2.3 * i - 1.3 * j);
+          }
+          p.push_back(x);
+        }
+    const int perm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+    for (int k = 0; k < n; ++k)
+      for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i)
+          for (const auto& a : perm) {
+            int c[3] = {i, j, k};
+            std::array<int32_t, 4> T;
+            T[0] = id(c[0], c[1], c[2]);
+            for (int s = 0; s < 3; ++s) {
+              ++c[a[s]];
+              T[size_t(s + 1)] = id(c[0], c[1], c[2]);
+            }
+            if (tetMinDihedral(p[T[0]], p[T[1]], p[T[2]], p[T[3]]) < 0) std::swap(T[0], T[1]);
+            t.push_back(T);
+            labels.push_back(2 * k < n ? 1 : 2);
+          }
+  }
+};
+
+}  // namespace
+
+TEST(Optimize, MovesInterfaceVerticesWithinTheirPlaneOnly) {
+  const int n = 4;
+  PlaneInterfaceMesh mesh(n);
+  ASSERT_GT(minOver(mesh.p, mesh.t), 0);
+  const double before = minOver(mesh.p, mesh.t);
+  OptimizeInterfaces in;
+  int calls = 0;
+  in.projectOntoInterface = [&](int a, int b, Vec3& x) {
+    ++calls;
+    if (a != 1 || b != 2) return false;  // the box faces are no interface of this test
+    x[2] = n / 2.0;
+    return true;
+  };
+  in.hasBox = true;
+  in.boxLo = {0, 0, 0};
+  in.boxHi = {double(n), double(n), double(n)};
+  in.boxTolerance = 1e-9;
+  in.facetDistance = 0.1;
+  OptimizeParameters op;
+  op.targetMinDihedral = 30;
+  RunContext ctx;
+  // Interfaces fixed (no callbacks): the flat tets at the shifted plane stay below the target.
+  PlaneInterfaceMesh fixed(n);
+  const auto r0 = optimizeTetMesh(fixed.p, fixed.t, fixed.labels, op, ctx);
+  EXPECT_EQ(r0.interfaceVertices, 0u);
+  const auto volumes0 = labelVolumes(mesh.p, mesh.t, mesh.labels);
+  for (const auto& [label, v] : volumes0) ASSERT_NEAR(v, n * n * n / 2.0, 1e-9) << "tets overlap";
+  const auto r = optimizeTetMesh(mesh.p, mesh.t, mesh.labels, op, in, ctx);
+  EXPECT_GT(calls, 0);
+  EXPECT_GE(r.interfaceVertices, 1u);
+  EXPECT_EQ(r.tripleLineVertices, 0u);
+  EXPECT_EQ(r.peeledTets, 0u);
+  EXPECT_GT(minOver(mesh.p, mesh.t), before);
+  EXPECT_GT(minOver(mesh.p, mesh.t), minOver(fixed.p, fixed.t) + 1)
+      << "moving the interface vertices should do clearly better than leaving them";
+  // Nothing dropped, the interface stays the plane, box vertices stay, volumes are exact.
+  ASSERT_EQ(mesh.p.size(), size_t((n + 1) * (n + 1) * (n + 1)));
+  size_t movedOnPlane = 0;
+  PlaneInterfaceMesh start(n);
+  for (size_t i = 0; i < mesh.p.size(); ++i) {
+    const Vec3& s = start.p[i];
+    if (s[2] == n / 2.0) {
+      EXPECT_EQ(mesh.p[i][2], n / 2.0) << "interface vertex " << i << " left the plane";
+      movedOnPlane += mesh.p[i] != s;
+    }
+    for (int a = 0; a < 3; ++a)  // box vertices stay on their faces
+      if (s[a] == 0 || s[a] == n) EXPECT_EQ(mesh.p[i][a], s[a]) << "box vertex " << i << " left its face";
+  }
+  EXPECT_EQ(movedOnPlane > 0, true);
+  const auto volumes1 = labelVolumes(mesh.p, mesh.t, mesh.labels);
+  for (const auto& [label, v] : volumes0) EXPECT_NEAR(volumes1.at(label), v, 1e-9 * v);
+  // Every face is held by one tet (box) or two (inside a material or on the interface).
+  std::map<std::array<int32_t, 3>, int> faceCount;
+  for (const auto& T : mesh.t)
+    for (int k = 0; k < 4; ++k) {
+      std::array<int32_t, 3> f;
+      int c = 0;
+      for (int q = 0; q < 4; ++q)
+        if (q != k) f[size_t(c++)] = T[size_t(q)];
+      std::sort(f.begin(), f.end());
+      ++faceCount[f];
+    }
+  for (const auto& [f, c] : faceCount) EXPECT_LE(c, 2);
+  // A refused facet distance (0) leaves the interface vertices where they are.
+  PlaneInterfaceMesh strict(n);
+  in.facetDistance = 0;
+  const auto r2 = optimizeTetMesh(strict.p, strict.t, strict.labels, op, in, ctx);
+  EXPECT_EQ(r2.interfaceVertices, 0u);
 }

@@ -2,6 +2,7 @@
 #include <femesher/RunContext.h>
 #include <femesher/VecMath.h>
 #include <femesher/stages/Optimize.h>
+#include <femesher/stages/internal/OptimizeEditor.h>
 
 #include <algorithm>
 #include <cmath>
@@ -10,101 +11,91 @@
 
 namespace femesher {
 
-namespace {
+namespace optimize_detail {
 
-constexpr double kRadToDeg = 57.29577951308232;
-constexpr double kEps = 1e-6;  // degrees: smallest improvement that counts
-
-
-/// Mutable tet mesh with vertex -> tet incidence; faces are found by intersecting incidences.
-class Editor {
- public:
-  Editor(std::vector<Vec3>& p, std::vector<std::array<int32_t, 4>>& t, std::vector<int32_t>& l)
-      : pts(p), tets(t), labels(l), alive(t.size(), 1), around(p.size()),
-        fixedState(p.size(), -1) {
-    for (size_t i = 0; i < tets.size(); ++i)
-      for (int32_t v : tets[i]) around[size_t(v)].push_back(uint32_t(i));
-    for (int32_t l : labels) {
-      if (size_t(l) >= perLabel.size()) perLabel.resize(size_t(l) + 1, 0);
-      ++perLabel[size_t(l)];
+bool smoothVertex(Editor& m, int32_t v, const MoveConstraint* constraint) {
+  const auto& star = m.around[size_t(v)];
+  if (star.empty()) return false;
+  auto starMin = [&](int64_t* worst) {
+    double q = 1e300;
+    for (uint32_t t : star) {
+      const double x = m.quality(t);
+      if (x < q) {
+        q = x;
+        if (worst) *worst = int64_t(t);
+      }
     }
+    return q;
+  };
+  Vec3& p = m.pts[size_t(v)];
+  const Vec3 start = p;
+  int64_t worst = -1;
+  double q0 = starMin(&worst);
+  const double qStart = q0;
+  // Neighbour centroid and a length scale.
+  Vec3 centroid{0, 0, 0};
+  double count = 0, scale = 0;
+  for (uint32_t t : star)
+    for (int32_t w : m.tets[t])
+      if (w != v) {
+        for (int a = 0; a < 3; ++a) centroid[a] += m.pts[size_t(w)][a];
+        scale += norm(sub(m.pts[size_t(w)], start));
+        ++count;
+      }
+  for (int a = 0; a < 3; ++a) centroid[a] /= count;
+  scale /= count;
+  auto inPlane = [&](const Vec3& d) {  // the allowed part of a displacement
+    return constraint && constraint->tangent ? constraint->tangent(d) : d;
+  };
+  {
+    const Vec3 d = inPlane(sub(centroid, start));
+    centroid = {start[0] + d[0], start[1] + d[1], start[2] + d[2]};
   }
-
-  std::vector<Vec3>& pts;
-  std::vector<std::array<int32_t, 4>>& tets;
-  std::vector<int32_t>& labels;
-  std::vector<char> alive;
-  std::vector<std::vector<uint32_t>> around;  // alive tets per vertex
-  std::vector<int8_t> fixedState;             // -1 unknown, 0 free, 1 on a boundary/interface
-  std::vector<size_t> perLabel;
-
-  double quality(uint32_t t) const {
-    const auto& T = tets[t];
-    return tetMinDihedral(pts[size_t(T[0])], pts[size_t(T[1])], pts[size_t(T[2])], pts[size_t(T[3])]);
-  }
-  double quality(const std::array<int32_t, 4>& T) const {
-    return tetMinDihedral(pts[size_t(T[0])], pts[size_t(T[1])], pts[size_t(T[2])], pts[size_t(T[3])]);
-  }
-  bool has(uint32_t t, int32_t v) const {
-    const auto& T = tets[t];
-    return T[0] == v || T[1] == v || T[2] == v || T[3] == v;
-  }
-  /// Alive tets holding both u and v.
-  void tetsOnEdge(int32_t u, int32_t v, std::vector<uint32_t>& out) const {
-    out.clear();
-    for (uint32_t t : around[size_t(u)])
-      if (has(t, v)) out.push_back(t);
-  }
-  /// The other tet holding face (a, b, c) of tet t, or -1 (outer boundary).
-  int64_t across(uint32_t t, int32_t a, int32_t b, int32_t c) const {
-    for (uint32_t s : around[size_t(a)])
-      if (s != t && has(s, b) && has(s, c)) return int64_t(s);
-    return -1;
-  }
-  /// Face k of tet t (the three vertices other than T[k]).
-  std::array<int32_t, 3> face(uint32_t t, int k) const {
-    const auto& T = tets[t];
-    std::array<int32_t, 3> f;
-    int n = 0;
-    for (int i = 0; i < 4; ++i)
-      if (i != k) f[size_t(n++)] = T[size_t(i)];
-    return f;
-  }
-  /// A face is constrained when it is on the outer boundary or between two materials.
-  bool constrained(uint32_t t, int k) const {
-    const auto f = face(t, k);
-    const int64_t s = across(t, f[0], f[1], f[2]);
-    return s < 0 || labels[size_t(s)] != labels[t];
-  }
-  /// A vertex is fixed when a constrained face holds it (cached: peeling and flips never free a
-  /// fixed vertex nor fix a free one, see the operations).
-  bool fixedVertex(int32_t v) {
-    int8_t& st = fixedState[size_t(v)];
-    if (st >= 0) return st == 1;
-    st = 0;
-    for (uint32_t t : around[size_t(v)])
-      for (int k = 0; k < 4 && st == 0; ++k)
-        if (tets[t][size_t(k)] != v && constrained(t, k)) st = 1;
-    return st == 1;
-  }
-  void kill(uint32_t t) {
-    alive[t] = 0;
-    --perLabel[size_t(labels[t])];
-    for (int32_t v : tets[t]) {
-      auto& a = around[size_t(v)];
-      a.erase(std::find(a.begin(), a.end(), t));
+  auto tryAt = [&](const Vec3& x) {
+    const Vec3 keep = p;
+    p = x;
+    if (constraint && constraint->project && !constraint->project(p)) {
+      p = keep;
+      return false;
     }
+    const double q = starMin(nullptr);
+    if (q > q0 + kEps && (!constraint || !constraint->accept || constraint->accept())) {
+      q0 = starMin(&worst);
+      return true;
+    }
+    p = keep;
+    return false;
+  };
+  tryAt(centroid);
+  for (int iter = 0; iter < 8; ++iter) {
+    // Gradient of the worst tet's angle with respect to p (central differences).
+    const double h = 1e-4 * scale;
+    Vec3 g{0, 0, 0};
+    for (int a = 0; a < 3; ++a) {
+      const double keep = p[a];
+      p[a] = keep + h;
+      const double qp = m.quality(uint32_t(worst));
+      p[a] = keep - h;
+      const double qm = m.quality(uint32_t(worst));
+      p[a] = keep;
+      g[a] = (qp - qm) / (2 * h);
+    }
+    g = inPlane(g);
+    const double gn = norm(g);
+    if (!(gn > 0) || !std::isfinite(gn)) break;
+    bool moved = false;
+    for (double step : {0.2, 0.1, 0.05, 0.02, 0.01, 0.005}) {
+      const Vec3 x{p[0] + step * scale * g[0] / gn, p[1] + step * scale * g[1] / gn,
+                   p[2] + step * scale * g[2] / gn};
+      if (tryAt(x)) {
+        moved = true;
+        break;
+      }
+    }
+    if (!moved) break;
   }
-  uint32_t add(const std::array<int32_t, 4>& T, int32_t label) {
-    const uint32_t id = uint32_t(tets.size());
-    tets.push_back(T);
-    labels.push_back(label);
-    alive.push_back(1);
-    ++perLabel[size_t(label)];
-    for (int32_t v : T) around[size_t(v)].push_back(id);
-    return id;
-  }
-};
+  return q0 > qStart + kEps;
+}
 
 /// Edge removal: re-triangulates the ring of edge (u, v) of tet t when that raises the ring's
 /// worst tet. Returns true when applied.
@@ -197,6 +188,13 @@ bool removeEdge(Editor& m, uint32_t t, int32_t u, int32_t v, std::vector<uint32_
   return true;
 }
 
+}  // namespace optimize_detail
+
+namespace {
+
+using namespace optimize_detail;
+constexpr double kRadToDeg = 57.29577951308232;
+
 /// 2-to-3 flip across face k of t (the face opposite T[k]) when both tets are of one material.
 bool flipFace(Editor& m, uint32_t t, int k, std::vector<uint32_t>& fresh) {
   auto f = m.face(t, k);
@@ -261,92 +259,6 @@ bool flatPatch(const Editor& m, int32_t v, double tolerance, Vec3& normal) {
   return true;
 }
 
-/// Moves vertex v when that raises the worst tet of its star; with `plane`, only within the
-/// plane through v with that unit normal.
-bool smoothVertex(Editor& m, int32_t v, const Vec3* plane = nullptr) {
-  const auto& star = m.around[size_t(v)];
-  if (star.empty()) return false;
-  auto starMin = [&](int64_t* worst) {
-    double q = 1e300;
-    for (uint32_t t : star) {
-      const double x = m.quality(t);
-      if (x < q) {
-        q = x;
-        if (worst) *worst = int64_t(t);
-      }
-    }
-    return q;
-  };
-  Vec3& p = m.pts[size_t(v)];
-  const Vec3 start = p;
-  int64_t worst = -1;
-  double q0 = starMin(&worst);
-  const double qStart = q0;
-  // Neighbour centroid and a length scale.
-  Vec3 centroid{0, 0, 0};
-  double count = 0, scale = 0;
-  for (uint32_t t : star)
-    for (int32_t w : m.tets[t])
-      if (w != v) {
-        for (int a = 0; a < 3; ++a) centroid[a] += m.pts[size_t(w)][a];
-        scale += norm(sub(m.pts[size_t(w)], start));
-        ++count;
-      }
-  for (int a = 0; a < 3; ++a) centroid[a] /= count;
-  scale /= count;
-  auto inPlane = [&](Vec3 d) {  // d without its normal component
-    if (plane) {
-      const double x = dot(d, *plane);
-      for (int a = 0; a < 3; ++a) d[a] -= x * (*plane)[a];
-    }
-    return d;
-  };
-  {
-    const Vec3 d = inPlane(sub(centroid, start));
-    centroid = {start[0] + d[0], start[1] + d[1], start[2] + d[2]};
-  }
-  auto tryAt = [&](const Vec3& x) {
-    const Vec3 keep = p;
-    p = x;
-    const double q = starMin(nullptr);
-    if (q > q0 + kEps) {
-      q0 = starMin(&worst);
-      return true;
-    }
-    p = keep;
-    return false;
-  };
-  tryAt(centroid);
-  for (int iter = 0; iter < 8; ++iter) {
-    // Gradient of the worst tet's angle with respect to p (central differences).
-    const double h = 1e-4 * scale;
-    Vec3 g{0, 0, 0};
-    for (int a = 0; a < 3; ++a) {
-      const double keep = p[a];
-      p[a] = keep + h;
-      const double qp = m.quality(uint32_t(worst));
-      p[a] = keep - h;
-      const double qm = m.quality(uint32_t(worst));
-      p[a] = keep;
-      g[a] = (qp - qm) / (2 * h);
-    }
-    g = inPlane(g);
-    const double gn = norm(g);
-    if (!(gn > 0) || !std::isfinite(gn)) break;
-    bool moved = false;
-    for (double step : {0.2, 0.1, 0.05, 0.02, 0.01, 0.005}) {
-      const Vec3 x{p[0] + step * scale * g[0] / gn, p[1] + step * scale * g[1] / gn,
-                   p[2] + step * scale * g[2] / gn};
-      if (tryAt(x)) {
-        moved = true;
-        break;
-      }
-    }
-    if (!moved) break;
-  }
-  return q0 > qStart + kEps;
-}
-
 /// Removes a flat tet with two, three or four faces on the outer boundary (see Optimize.h).
 bool peel(Editor& m, uint32_t t, double tolerance) {
   if (tolerance <= 0 || m.perLabel[size_t(m.labels[t])] <= 1) return false;
@@ -408,6 +320,35 @@ bool peel(Editor& m, uint32_t t, double tolerance) {
   return true;
 }
 
+/// Smooths vertex v by its class: interior vertices freely, interface and triple-line vertices
+/// along their interface (when `interfaces` has one and the parameters allow), vertices of a flat
+/// outer-boundary patch within its plane; counts the move in `r`. True when v moved.
+bool moveVertex(Editor& m, int32_t v, const OptimizeParameters& params,
+                const OptimizeInterfaces& interfaces, OptimizeResult& r) {
+  bool moved = false;
+  if (!m.fixedVertex(v)) {
+    moved = smoothVertex(m, v, nullptr);
+  } else {
+    int kind = 0;
+    if (params.moveInterfaces && interfaces.enabled() &&
+        smoothInterfaceVertex(m, v, interfaces, kind)) {
+      ++(kind == 3 ? r.tripleLineVertices : r.interfaceVertices);
+      return true;
+    }
+    Vec3 normal;
+    if (kind == 0 && flatPatch(m, v, 1e-4 * (params.peelDistance * params.voxelSize), normal)) {
+      MoveConstraint inPlane;
+      inPlane.tangent = [normal](const Vec3& d) {
+        const double x = dot(d, normal);
+        return Vec3{d[0] - x * normal[0], d[1] - x * normal[1], d[2] - x * normal[2]};
+      };
+      moved = smoothVertex(m, v, &inPlane);
+    }
+  }
+  r.smoothedVertices += moved;
+  return moved;
+}
+
 }  // namespace
 
 double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
@@ -433,6 +374,12 @@ double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d
 OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
                                std::vector<int32_t>& labels, const OptimizeParameters& params,
                                RunContext& ctx) {
+  return optimizeTetMesh(points, tets, labels, params, OptimizeInterfaces{}, ctx);
+}
+
+OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
+                               std::vector<int32_t>& labels, const OptimizeParameters& params,
+                               const OptimizeInterfaces& interfaces, RunContext& ctx) {
   OptimizeResult r;
   auto survey = [&](size_t& below, size_t& below5, double& mn) {
     below = below5 = 0;
@@ -489,14 +436,14 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
           ++r.faceFlips;
           changed = true;
         }
+      if (!changed && params.moveInterfaces && interfaces.enabled() &&
+          flipInterfaceEdge(m, t, interfaces, fresh)) {
+        ++r.interfaceFlips;
+        changed = true;
+      }
       if (!changed && params.smooth) {
-        const auto T = m.tets[t];
-        Vec3 normal;
-        for (int32_t v : T)
-          if ((!m.fixedVertex(v) && smoothVertex(m, v)) ||
-              (m.fixedVertex(v) && flatPatch(m, v, 1e-4 * (params.peelDistance * params.voxelSize), normal) &&
-               smoothVertex(m, v, &normal))) {
-            ++r.smoothedVertices;
+        for (int32_t v : m.tets[t])
+          if (moveVertex(m, v, params, interfaces, r)) {
             changed = true;
             for (uint32_t s : m.around[size_t(v)]) fresh.push_back(s);
           }
@@ -547,6 +494,9 @@ ReportCounts reportCounts(const OptimizeResult& r) {
           {"optimize_edge_removals", double(r.edgeRemovals)},
           {"optimize_face_flips", double(r.faceFlips)},
           {"optimize_smoothed_vertices", double(r.smoothedVertices)},
+          {"optimize_interface_vertex_moves", double(r.interfaceVertices)},
+          {"optimize_triple_line_vertex_moves", double(r.tripleLineVertices)},
+          {"optimize_interface_flips", double(r.interfaceFlips)},
           {"optimize_peeled_tets", double(r.peeledTets)},
           {"optimize_passes", double(r.passes)}};
 }

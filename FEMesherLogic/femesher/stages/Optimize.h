@@ -2,10 +2,10 @@
 #pragma once
 /// \file Optimize.h
 /// Stage 10 ("Optimize"): removes slivers and other flat tets left by TetGen, towards a minimum
-/// dihedral angle target, without changing any interface between two materials.
+/// dihedral angle target, keeping the mesh conformal and its interfaces near the smooth ones.
 ///
 /// Works on the tets whose minimum dihedral angle is below `targetMinDihedral`, worst first, with
-/// four local operations. Each is applied only when it raises the smallest minimum dihedral angle
+/// these local operations. Each is applied only when it raises the smallest minimum dihedral angle
 /// of the tets it replaces or moves (so the worst angle of the mesh never decreases and the
 /// process terminates):
 ///  - edge removal (Shewchuk's edge removal, 3-to-2, 4-to-4, ... 7-to-10 flips): an edge whose
@@ -22,8 +22,21 @@
 ///    thickness is below `peelDistance` (never a material's last tet). That flips two nearly
 ///    coplanar boundary triangles, drops a nearly flat cap or an isolated flat tet, and moves the
 ///    outer boundary by at most `peelDistance`.
-/// Faces between two materials are never changed, nor are their vertices moved: TetGen's
-/// interface triangles stay exactly as they are, so the mesh stays conformal. The result is
+///  - smoothing of interface vertices (given the smooth interfaces, OptimizeInterfaces, see
+///    InterfaceSmoothing.h): a vertex with exactly two materials around (outside the mesh, away
+///    from the volume's box, counting as background 0) moves in the tangent plane of its
+///    interface triangles and is projected back onto f_a = f_b; a vertex with three materials
+///    around moves along its triple line and is projected onto it. Both materials' tets move
+///    with it, so the mesh stays conformal. A move is kept only when it raises the worst tet of
+///    the star (see InterfaceSmoothing.h for the distance and volume bounds). Vertices with four
+///    or more materials around, and vertices of an interface on the volume's box, stay;
+///  - interface edge flips: a flat tet with two faces on the interface with one other material
+///    (its other faces inside its own) joins that material when the edge it leaves inside it can
+///    then be removed (the edge removal above): the two interface triangles on that edge become
+///    the tet's two other faces.
+/// Interface triangles change only by these moves and flips, which relabel or re-triangulate
+/// whole tets: every interface triangle stays shared by the tets of both sides,
+/// so the mesh stays conformal. The result is
 /// deterministic (sequential, ordered by quality and index). All positions in mm (any frame:
 /// the operations are rigid-motion invariant).
 
@@ -32,6 +45,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace femesher {
@@ -52,6 +66,30 @@ struct OptimizeParameters {
   double voxelSize = 1.0;
   /// Move interior vertices.
   bool smooth = true;
+  /// Move interface and triple-line vertices along their interfaces (needs OptimizeInterfaces).
+  bool moveInterfaces = true;
+};
+
+/// The smooth interfaces the mesh approximates, in the mesh's frame (mm). Materials are the
+/// mesh's tet labels; 0 is the background, which is also what lies outside the mesh except on
+/// the volume's box. A run builds it from its indicator functions (indicatorInterfaces in
+/// InterfaceSmoothing.h); tests may give analytic surfaces. Empty callbacks: interfaces stay.
+struct OptimizeInterfaces {
+  /// Moves `p` onto the interface f_a = f_b (a < b) near it; false when that fails (no
+  /// convergence, or a and b are not the two leading materials there).
+  std::function<bool(int a, int b, Vec3& p)> projectOntoInterface;
+  /// Moves `p` onto the triple line of the sorted materials a < b < c near it; false on failure.
+  std::function<bool(const std::array<int, 3>& abc, Vec3& p)> projectOntoJunction;
+  /// The volume's box (mm); with hasBox, vertices on it never move along an interface and mesh
+  /// faces on it are not interfaces.
+  Vec3 boxLo{{0, 0, 0}}, boxHi{{0, 0, 0}};
+  bool hasBox = false;
+  /// A vertex within this distance (mm) of a box plane is on the box.
+  double boxTolerance = 0;
+  /// Largest distance (mm) of an interface triangle's centroid from its smooth interface after a
+  /// move (the boundary stage's facet_distance); a move breaking it is refused.
+  double facetDistance = 0;
+  bool enabled() const { return bool(projectOntoInterface) && facetDistance > 0; }
 };
 
 struct OptimizeResult {
@@ -60,14 +98,18 @@ struct OptimizeResult {
   double minDihedralBefore = 0, minDihedralAfter = 0;  ///< degrees
   size_t edgeRemovals = 0;      ///< n-to-(2n-4) flips (n = 3..7)
   size_t faceFlips = 0;         ///< 2-to-3 flips
-  size_t smoothedVertices = 0;  ///< interior vertex moves
+  size_t smoothedVertices = 0;  ///< interior (and flat outer-patch) vertex moves
+  size_t interfaceVertices = 0;   ///< interface vertex moves (two materials)
+  size_t tripleLineVertices = 0;  ///< triple-line vertex moves
+  size_t interfaceFlips = 0;      ///< interface edge flips
   size_t peeledTets = 0;        ///< flat boundary tets removed
   int passes = 0;               ///< rounds run
 };
 
 /// Report figures: optimize_tets_below_target_before/after, optimize_tets_below_5deg_before/after,
 /// optimize_min_dihedral_before/after, optimize_edge_removals, optimize_face_flips,
-/// optimize_smoothed_vertices, optimize_peeled_tets, optimize_passes.
+/// optimize_smoothed_vertices, optimize_interface_vertex_moves, optimize_triple_line_vertex_moves,
+/// optimize_interface_flips, optimize_peeled_tets, optimize_passes.
 ReportCounts reportCounts(const OptimizeResult& result);
 
 /// Minimum dihedral angle of a tet in degrees; -1 when it is not positively oriented (or flat).
@@ -79,5 +121,9 @@ double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d
 OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
                                std::vector<int32_t>& labels, const OptimizeParameters& params,
                                RunContext& ctx);
+/// The same, moving interface vertices along `interfaces` (see above).
+OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
+                               std::vector<int32_t>& labels, const OptimizeParameters& params,
+                               const OptimizeInterfaces& interfaces, RunContext& ctx);
 
 }  // namespace femesher

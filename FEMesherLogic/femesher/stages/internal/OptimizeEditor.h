@@ -1,0 +1,157 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+/// \file OptimizeEditor.h
+/// Internal to the Optimize stage (Optimize.cxx, InterfaceSmoothing.cxx): the mutable tet mesh
+/// the operations edit, and the vertex move they share. Positions in mm (canonical frame in a run).
+
+#include <femesher/stages/Optimize.h>
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+namespace femesher {
+namespace optimize_detail {
+
+constexpr double kEps = 1e-6;  // degrees: smallest improvement that counts
+
+/// Mutable tet mesh with vertex -> tet incidence; faces are found by intersecting incidences.
+class Editor {
+ public:
+  Editor(std::vector<Vec3>& p, std::vector<std::array<int32_t, 4>>& t, std::vector<int32_t>& l)
+      : pts(p), tets(t), labels(l), alive(t.size(), 1), around(p.size()),
+        fixedState(p.size(), -1) {
+    for (size_t i = 0; i < tets.size(); ++i)
+      for (int32_t v : tets[i]) around[size_t(v)].push_back(uint32_t(i));
+    for (int32_t l : labels) {
+      if (size_t(l) >= perLabel.size()) perLabel.resize(size_t(l) + 1, 0);
+      ++perLabel[size_t(l)];
+    }
+    startVolume.assign(perLabel.size(), 0);
+    movedVolume.assign(perLabel.size(), 0);
+    for (size_t i = 0; i < tets.size(); ++i) startVolume[size_t(labels[i])] += volume(uint32_t(i));
+  }
+
+  std::vector<Vec3>& pts;
+  std::vector<std::array<int32_t, 4>>& tets;
+  std::vector<int32_t>& labels;
+  std::vector<char> alive;
+  std::vector<std::vector<uint32_t>> around;  // alive tets per vertex
+  std::vector<int8_t> fixedState;             // -1 unknown, 0 free, 1 on a boundary/interface
+  std::vector<size_t> perLabel;
+  /// Per material: volume at the start and the net volume interface moves added so far (mm^3).
+  std::vector<double> startVolume, movedVolume;
+
+  double volume(uint32_t t) const {
+    const auto& T = tets[t];
+    const Vec3 &a = pts[size_t(T[0])], &b = pts[size_t(T[1])], &c = pts[size_t(T[2])],
+               &d = pts[size_t(T[3])];
+    const Vec3 u{b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v{c[0] - a[0], c[1] - a[1], c[2] - a[2]},
+        w{d[0] - a[0], d[1] - a[1], d[2] - a[2]};
+    return (u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0]) +
+            u[2] * (v[0] * w[1] - v[1] * w[0])) / 6;
+  }
+
+  double quality(uint32_t t) const {
+    const auto& T = tets[t];
+    return tetMinDihedral(pts[size_t(T[0])], pts[size_t(T[1])], pts[size_t(T[2])], pts[size_t(T[3])]);
+  }
+  double quality(const std::array<int32_t, 4>& T) const {
+    return tetMinDihedral(pts[size_t(T[0])], pts[size_t(T[1])], pts[size_t(T[2])], pts[size_t(T[3])]);
+  }
+  bool has(uint32_t t, int32_t v) const {
+    const auto& T = tets[t];
+    return T[0] == v || T[1] == v || T[2] == v || T[3] == v;
+  }
+  /// Alive tets holding both u and v.
+  void tetsOnEdge(int32_t u, int32_t v, std::vector<uint32_t>& out) const {
+    out.clear();
+    for (uint32_t t : around[size_t(u)])
+      if (has(t, v)) out.push_back(t);
+  }
+  /// The other tet holding face (a, b, c) of tet t, or -1 (outer boundary).
+  int64_t across(uint32_t t, int32_t a, int32_t b, int32_t c) const {
+    for (uint32_t s : around[size_t(a)])
+      if (s != t && has(s, b) && has(s, c)) return int64_t(s);
+    return -1;
+  }
+  /// Face k of tet t (the three vertices other than T[k]).
+  std::array<int32_t, 3> face(uint32_t t, int k) const {
+    const auto& T = tets[t];
+    std::array<int32_t, 3> f;
+    int n = 0;
+    for (int i = 0; i < 4; ++i)
+      if (i != k) f[size_t(n++)] = T[size_t(i)];
+    return f;
+  }
+  /// A face is constrained when it is on the outer boundary or between two materials.
+  bool constrained(uint32_t t, int k) const {
+    const auto f = face(t, k);
+    const int64_t s = across(t, f[0], f[1], f[2]);
+    return s < 0 || labels[size_t(s)] != labels[t];
+  }
+  /// A vertex is fixed when a constrained face holds it (cached: peeling and flips never free a
+  /// fixed vertex nor fix a free one, see the operations).
+  bool fixedVertex(int32_t v) {
+    int8_t& st = fixedState[size_t(v)];
+    if (st >= 0) return st == 1;
+    st = 0;
+    for (uint32_t t : around[size_t(v)])
+      for (int k = 0; k < 4 && st == 0; ++k)
+        if (tets[t][size_t(k)] != v && constrained(t, k)) st = 1;
+    return st == 1;
+  }
+  void relabel(uint32_t t, int32_t label) {
+    --perLabel[size_t(labels[t])];
+    labels[t] = label;
+    ++perLabel[size_t(label)];
+  }
+  void kill(uint32_t t) {
+    alive[t] = 0;
+    --perLabel[size_t(labels[t])];
+    for (int32_t v : tets[t]) {
+      auto& a = around[size_t(v)];
+      a.erase(std::find(a.begin(), a.end(), t));
+    }
+  }
+  uint32_t add(const std::array<int32_t, 4>& T, int32_t label) {
+    const uint32_t id = uint32_t(tets.size());
+    tets.push_back(T);
+    labels.push_back(label);
+    alive.push_back(1);
+    ++perLabel[size_t(label)];
+    for (int32_t v : T) around[size_t(v)].push_back(id);
+    return id;
+  }
+};
+
+/// A constrained vertex move: `tangent` keeps the allowed part of a displacement, `project` puts
+/// a trial position back onto the constraint (false: rejected), `accept` checks the moved star
+/// (the vertex already at its trial position; false: rejected). Empty members: no constraint.
+struct MoveConstraint {
+  std::function<Vec3(const Vec3&)> tangent;
+  std::function<bool(Vec3&)> project;
+  std::function<bool()> accept;
+};
+
+/// Moves vertex v when that raises the worst tet of its star (Laplacian candidate, then a line
+/// search along the worst tet's gradient), within `constraint` when not null. True when moved.
+bool smoothVertex(Editor& m, int32_t v, const MoveConstraint* constraint);
+
+/// Edge removal (Optimize.h): re-triangulates the ring of edge (u, v) of tet t, all of t's
+/// material, when that raises the ring's worst tet; the new tets go to `fresh`. True when applied.
+bool removeEdge(Editor& m, uint32_t t, int32_t u, int32_t v, std::vector<uint32_t>& fresh);
+
+/// Interface edge flip (InterfaceSmoothing.h) at tet t; the new tets go to `fresh`. True when
+/// applied.
+bool flipInterfaceEdge(Editor& m, uint32_t t, const OptimizeInterfaces& interfaces,
+                       std::vector<uint32_t>& fresh);
+
+/// Moves an interface or triple-line vertex along its interface (InterfaceSmoothing.h); false
+/// when v is of another class or no move helps. `kind` gets 2 (interface) or 3 (triple line).
+bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& interfaces, int& kind);
+
+}  // namespace optimize_detail
+}  // namespace femesher
