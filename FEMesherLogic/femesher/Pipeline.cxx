@@ -40,6 +40,7 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
     result.sizingField = s.sizingField;
     if (s.sizingField) result.sizingGeometry = run.workingGridGeometry();
     result.hasFidelity = s.hasFidelity;
+    result.meshCheck = s.meshCheck;
     result.mesh = std::move(s.mesh);
     result.quality = std::move(s.quality);
     result.fidelity = std::move(s.fidelity);

@@ -52,6 +52,9 @@ struct OptimizeParameters {
   double voxelSize = 1.0;
   /// Move interior vertices.
   bool smooth = true;
+  /// Degrees: after the stage, tets below this are reported and the run's status becomes
+  /// "poor_elements" (MeshCheck.h; the stage itself does not read it). 0 = no warning.
+  double minDihedralWarning = 5.0;
 };
 
 struct OptimizeResult {
