@@ -14,6 +14,7 @@
 #include <QDoubleValidator>
 #include <QFileDialog>
 #include <QFileInfo>
+#include <QFont>
 #include <QFormLayout>
 #include <QGridLayout>
 #include <QGroupBox>
@@ -746,6 +747,18 @@ void qFEMesherPanelWidget::onSucceeded(std::shared_ptr<const femesher::PipelineR
       auto* item = new QListWidgetItem(text, warnings_);
       item->setForeground(QColor(170, 90, 0));
     }
+  }
+  // The element check's warning (tets below min_dihedral_warning) first, in bold.
+  if (result->meshCheck.poor()) {
+    const QString poor = QString::fromStdString(femesher::poorElementsWarning(result->meshCheck));
+    const auto found = warnings_->findItems(poor, Qt::MatchExactly);
+    QListWidgetItem* item = found.isEmpty() ? new QListWidgetItem(poor)
+                                            : warnings_->takeItem(warnings_->row(found.front()));
+    QFont font = item->font();
+    font.setBold(true);
+    item->setFont(font);
+    item->setForeground(QColor(170, 90, 0));
+    warnings_->insertItem(0, item);
   }
   size_t tets = result->mesh.tets.size();
   showInfo(tr("Done in %1 s: %2 vertices, %3 tets, %4 materials. %5 warning(s).")

@@ -222,7 +222,10 @@ int runMesh(const MeshOptions& o) {
   gRunning = nullptr;
   if (!result) {
     progress.finish(false);
-    return fail(result.status());
+    const Status& s = result.status();
+    const bool meshing = s.code() == ErrorCode::MeshingFailed || s.code() == ErrorCode::Internal;
+    if (!meshing || s.message().find(o.input) != std::string::npos) return fail(s);
+    return fail(Status(s.code(), o.input + ": " + s.message()));  // name the file
   }
   return writeRunOutputs(result.value(), params.value(), o, o.input, progress);
 }
@@ -253,6 +256,10 @@ int writeRunOutputs(const PipelineResult& result, const MeshingParameters& param
     if (r.hasFidelity) std::fprintf(stderr, "%s", fidelityReportToText(r.fidelity).c_str());
     for (const auto& out : o.outputs) std::fprintf(stderr, "wrote %s\n", out.c_str());
   }
+  // The element check's one line, even with --quiet when the status is poor_elements.
+  const MeshCheckResult& check = result.meshCheck;
+  if (!o.quiet || check.poor())
+    std::fprintf(stderr, "Elements: %s\n", meshCheckSummary(check).c_str());
   return 0;
 }
 

@@ -237,6 +237,13 @@ void MeshingRun::optimize() {
   ctx_.debug("Optimize: " + std::to_string(opt.tetsBelowTargetBefore) + " -> " +
              std::to_string(opt.tetsBelowTargetAfter) + " tets below target, min dihedral " +
              std::to_string(opt.minDihedralBefore) + " -> " + std::to_string(opt.minDihedralAfter));
+  MeshCheckParameters cp;
+  cp.minDihedralWarning = op.minDihedralWarning;
+  const LabelVolume& in = input_;
+  const MeshCheckFrame frame{[&in](const Vec3& c) { return in.canonicalToPhysical(c); },
+                             in.sourcePath};
+  state_.meshCheck = checkTetMesh(vm.points, vm.tets, vm.labels, cp, frame);
+  if (state_.meshCheck.poor()) ctx_.warn(poorElementsWarning(state_.meshCheck));
 }
 
 void MeshingRun::toPhysical() {

@@ -11,6 +11,7 @@
 /// uniform sizing, Fidelity with compute_fidelity off) are skipped. Each stage is timed and
 /// reported to the RunContext (progress, cancel). Errors are thrown as femesher::Error.
 
+#include <femesher/MeshCheck.h>
 #include <femesher/Parameters.h>
 #include <femesher/RunContext.h>
 #include <femesher/StageTable.h>
@@ -58,6 +59,7 @@ struct MeshingState {
   InterfaceSurface surface;                     ///< BoundaryMesh
   VolumeMeshResult volumeMesh;                  ///< VolumeMesh then Optimize (canonical, compact)
   OptimizeResult optimize;                      ///< Optimize
+  MeshCheckResult meshCheck;                    ///< the check after Optimize (MeshCheck.h)
   TetMesh mesh;                                 ///< physical LPS, user labels (after Optimize)
   std::set<int32_t> meshedMaterials;            ///< compact labels present in `mesh`
   QualityReport quality;                        ///< Quality

@@ -151,6 +151,12 @@ const std::vector<Binding>& bindings() {
          "conformal. Off: interface vertices stay where TetGen left them.", true},
         [](MeshingParameters& p, double x) { p.optimize.moveInterfaces = x != 0; },
         [](const MeshingParameters& p) { return p.optimize.moveInterfaces ? 1.0 : 0.0; });
+    add({"min_dihedral_warning", "double", "degrees", "", 0, 90, "Poor element warning",
+         "After optimisation, tets whose smallest dihedral angle is below this are counted and "
+         "the worst listed in the report, the run warns and its status is poor_elements instead "
+         "of ok. 0 = no warning.", true},
+        [](MeshingParameters& p, double x) { p.optimize.minDihedralWarning = x; },
+        [](const MeshingParameters& p) { return p.optimize.minDihedralWarning; });
     add({"threads", "int", "", "", 0, 1024, "Threads", "Worker threads; 0 = all cores.", true},
         [](MeshingParameters& p, double x) { p.run.threads = int(x); },
         [](const MeshingParameters& p) { return double(p.run.threads); });

@@ -50,7 +50,8 @@ struct MeshingParameters {
   ParticleSystemParameters particles;    ///< particle_iterations (its seed is `run.seed`)
   BoundaryMeshParameters boundary;       ///< facet_distance, voxel_refinement, surface_mesher
   VolumeMeshParameters volume;           ///< TetGen bounds and options
-  OptimizeParameters optimize;           ///< optimize_min_dihedral, sliver_peel_distance, optimize_interfaces
+  OptimizeParameters optimize;           ///< optimize_min_dihedral, sliver_peel_distance,
+                                         ///< optimize_interfaces, min_dihedral_warning
   RunParameters run;
 
   // --- Exports --------------------------------------------------------------------------------

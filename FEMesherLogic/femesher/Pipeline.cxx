@@ -39,6 +39,7 @@ PipelineResult collect(MeshingRun& run, RunContext& ctx,
   result.sizingField = s.sizingField;
   if (s.sizingField) result.sizingGeometry = run.workingGridGeometry();
   result.hasFidelity = s.hasFidelity;
+  result.meshCheck = s.meshCheck;
   result.mesh = std::move(s.mesh);
   result.quality = std::move(s.quality);
   result.fidelity = std::move(s.fidelity);

@@ -23,6 +23,7 @@ namespace femesher {
 struct PipelineResult {
   TetMesh mesh;                     ///< LPS mm, tets labelled with user label ids
   QualityReport quality;
+  MeshCheckResult meshCheck;        ///< the check after Optimize: worst angle, poor elements
   FidelityReport fidelity;          ///< empty when compute_fidelity is off
   bool hasFidelity = false;
   std::vector<StageTiming> timings; ///< wall seconds per stage, in run order

@@ -31,6 +31,27 @@ json labelsJson(const MeshingState& s) {
   return labels;
 }
 
+/// The check after Optimize: the threshold, the counts and the worst tets below it (LPS
+/// centroid, user label, material name, angle).
+json meshCheckJson(const MeshingState& s) {
+  const MeshCheckResult& c = s.meshCheck;
+  const PreprocessedVolume& vol = s.grid;
+  json worst = json::array();
+  for (const PoorElement& e : c.worst) {
+    const auto m = size_t(e.label);
+    const bool known = m < vol.userLabel.size() && m < vol.materials.size();
+    worst.push_back({{"centroid_lps", e.centroid},
+                     {"label", known ? vol.userLabel[m] : e.label},
+                     {"material", known ? vol.materials[m].name : std::string()},
+                     {"min_dihedral", e.minDihedral}});
+  }
+  return {{"min_dihedral_warning", c.minDihedralWarning},
+          {"worst_min_dihedral", c.worstMinDihedral},
+          {"tets_below_warning", c.tetsBelowWarning},
+          {"degenerate_tets_removed", c.removedDegenerateTets},
+          {"worst_tets", worst}};
+}
+
 }  // namespace
 
 std::string runReportJson(const MeshingRun& run, const std::vector<std::string>& warnings,
@@ -68,7 +89,10 @@ std::string runReportJson(const MeshingRun& run, const std::vector<std::string>&
   report["quality"] = json::parse(qualityReportToJson(s.quality, true));
   if (s.hasFidelity) report["fidelity"] = json::parse(fidelityReportToJson(s.fidelity));
   report["warnings"] = warnings;
-  report["status"] = "ok";
+  report["mesh_check"] = meshCheckJson(s);
+  // "ok": no degenerate tet (a run with one fails) and every tet at or above
+  // min_dihedral_warning; "poor_elements": some tet below it (mesh_check lists the worst).
+  report["status"] = s.meshCheck.poor() ? "poor_elements" : "ok";
   return report.dump(2);
 }
 

@@ -3,7 +3,10 @@
 /// \file RunReport.h
 /// The run report (`femesher mesh --report r.json`, the panel's "Save report"): input geometry and
 /// label table, every parameter, per-stage wall seconds, every stage result's counts, quality and
-/// fidelity figures, warnings and a status.
+/// fidelity figures, the mesh check after Optimize (`mesh_check`: min_dihedral_warning,
+/// worst_min_dihedral, tets_below_warning, degenerate_tets_removed, worst_tets with centroid_lps,
+/// label, material, min_dihedral), warnings and a status: "ok" when no tet is below
+/// min_dihedral_warning (and none is degenerate: such a run fails), else "poor_elements".
 
 #include <femesher/MeshingRun.h>
 

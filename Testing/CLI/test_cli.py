@@ -148,7 +148,22 @@ out_inp = os.path.join(TMP, "ball.inp")
 r = run("mesh", small, "-o", out_inp, "--report", report, "--set", "target_edge_length=1.5")
 check(r.returncode == 0, "mesh -o .inp --report exits 0")
 rep = json.load(open(report))
-check(rep["status"] == "ok" and rep["counts"]["tets"] > 0, "report has counts")
+check(rep["counts"]["tets"] > 0, "report has counts")
+check(rep["status"] == ("poor_elements" if rep["mesh_check"]["tets_below_warning"] else "ok"),
+      "report status %s follows mesh_check" % rep["status"])
+line = [l for l in r.stderr.splitlines() if l.startswith("Elements: ")]
+check(len(line) == 1 and re.search(r"worst dihedral angle [0-9.e+-]+ deg; %d tet\(s\) below "
+                                   r"min_dihedral_warning \(5 deg\).*: status %s$"
+                                   % (rep["mesh_check"]["tets_below_warning"], rep["status"]),
+                                   line[0]),
+      "mesh prints one Elements line with the worst angle, the count and the status: %s" % line)
+r = run("mesh", small, "-o", os.path.join(TMP, "poor.vtu"), "-q", "--set", "min_dihedral_warning=89")
+check(r.returncode == 0 and re.search(r"^Elements: .* below min_dihedral_warning \(89 deg\): "
+                                      r"status poor_elements$", r.stderr, re.M),
+      "with --quiet the Elements line is still printed when the status is poor_elements: %s"
+      % r.stderr.strip()[-200:])
+r = run("mesh", small, "-o", os.path.join(TMP, "nowarn.vtu"), "-q", "--set", "min_dihedral_warning=0")
+check(r.returncode == 0 and "Elements:" not in r.stderr, "with --quiet and no warning: no Elements line")
 check({s["name"] for s in rep["stages"]} >= {"LabelPreprocess", "VolumeMesh"}, "report has stage timings")
 check(rep["parameters"]["target_edge_length"] == 1.5, "report records the parameters")
 check(rep["input"]["space"] == "LPS", "report records the input geometry in LPS")

@@ -245,6 +245,17 @@ class PanelWidgetTest : public QObject {
     QCOMPARE(labels, (std::set<int32_t>{1, 2, 3, 4, 5}));
     QCOMPARE(panel_->progressBar()->value(), panel_->progressBar()->maximum());
     QVERIFY(panel_->warningsList()->count() >= int(r->warnings.size()));
+    // Tets below min_dihedral_warning: the element check's warning comes first, in bold.
+    const QListWidget* warnings = panel_->warningsList();
+    int poorItems = 0;
+    for (int i = 0; i < warnings->count(); ++i)
+      poorItems += warnings->item(i)->text().startsWith(QStringLiteral("Poor elements: "));
+    QCOMPARE(poorItems, r->meshCheck.poor() ? 1 : 0);
+    if (r->meshCheck.poor()) {
+      QCOMPARE(warnings->item(0)->text(),
+               QString::fromStdString(femesher::poorElementsWarning(r->meshCheck)));
+      QVERIFY(warnings->item(0)->font().bold());
+    }
     for (const QString& ext : panel_->exportExtensions())
       QVERIFY(panel_->exportButton(ext)->isEnabled());
 

@@ -68,6 +68,9 @@ struct OptimizeParameters {
   bool smooth = true;
   /// Move interface and triple-line vertices along their interfaces (needs OptimizeInterfaces).
   bool moveInterfaces = true;
+  /// Degrees: after the stage, tets below this are reported and the run's status becomes
+  /// "poor_elements" (MeshCheck.h; the stage itself does not read it). 0 = no warning.
+  double minDihedralWarning = 5.0;
 };
 
 /// The smooth interfaces the mesh approximates, in the mesh's frame (mm). Materials are the

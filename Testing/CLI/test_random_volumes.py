@@ -1,0 +1,69 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""30 seeded random multi-material volumes (Testing/Benchmarks/random_volumes.py, small sizes)
+through `femesher mesh`, each written mesh judged by an independent decoder: every run succeeds
+or fails with a clear error naming the file (an exit code of the README's table) and writes
+nothing; no written mesh has a tet of zero or negative volume; a run whose report says "ok" has
+no tet below min_dihedral_warning, one that says "poor_elements" has one, and the CLI's
+"Elements:" line says the same status."""
+import os
+import sys
+import tempfile
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "Benchmarks"))
+import random_volumes  # noqa: E402
+
+CLI = os.environ["FEMESHER_CLI"]
+TMP = tempfile.mkdtemp(prefix="random_volumes_", dir=os.environ.get("FEMESHER_TMP"))
+COUNT, SEED, MAX_SIZE = 30, 12, 22
+# Exit codes of femesher (README, "Exit codes"): the ones a meshing run may end with.
+ERRORS = {10: "meshing-failed", 13: "internal"}
+
+failures = []
+
+
+def check(cond, msg):
+    if not cond:
+        failures.append(msg)
+        print("FAIL:", msg)
+
+
+def judge(r):
+    name = r["name"]
+    if r["exit"] != 0:
+        check(r["exit"] == 10, "%s: a failed run exits with meshing-failed (10), got %d: %s"
+              % (name, r["exit"], r["stderr"][-300:]))
+        check(r["error"].startswith("error [%s]" % ERRORS.get(r["exit"], "?"))
+              and os.path.basename(r["path"]) in r["error"],
+              "%s: the error names its code and the file: %s" % (name, r["error"]))
+        check(not r["written"], "%s: a failed run writes no mesh" % name)
+        return
+    check(r["tets"] > 0, "%s: the mesh has tets" % name)
+    check(r["zero_volume"] == 0, "%s: %d written tets of zero or negative volume"
+          % (name, r["zero_volume"]))
+    warning = r["warning_deg"]
+    if r["status"] == "ok":
+        check(r["worst"] >= warning - 1e-6, "%s: status ok but the written mesh's worst angle is "
+              "%.4f < min_dihedral_warning %g" % (name, r["worst"], warning))
+    else:
+        check(r["status"] == "poor_elements" and r["worst"] < warning + 1e-6,
+              "%s: status %s with worst angle %.4f (warning %g)" % (name, r["status"], r["worst"],
+                                                                     warning))
+    check(r["elements_line"].endswith("status " + r["status"]),
+          "%s: the CLI's Elements line says the report's status: %r" % (name, r["elements_line"]))
+    check(not r["missing"], "%s: labels missing from the mesh: %s" % (name, r["missing"]))
+
+
+
+rows = random_volumes.sweep(CLI, COUNT, SEED, MAX_SIZE, TMP)
+check(len(rows) == COUNT, "%d runs" % len(rows))
+# A volume whose mesh kept flat tets between two boxes (before issue 12's optimiser): the run
+# must fail with a clear error, or succeed without them.
+name, path = random_volumes.generate(200148, TMP)
+extra = random_volumes.mesh_one(CLI, path, TMP)
+extra.update(name=name, path=path)
+print(name, "exit", extra["exit"], extra.get("error", extra.get("status")))
+for r in rows + [extra]:
+    judge(r)
+print("%d runs, %d failures" % (len(rows) + 1, len(failures)))
+sys.exit(1 if failures else 0)
