@@ -194,6 +194,23 @@ Result<MeshingParameters> buildParameters(const MeshOptions& o) {
 int writeRunOutputs(const PipelineResult& result, const MeshingParameters& params,
                     const MeshOptions& o, const std::string& source, cli::CliProgress& progress);
 
+/// A run context showing its progress on `progress` and cancelled by Ctrl-C / SIGTERM while it
+/// lives.
+struct CancellableRun {
+  explicit CancellableRun(cli::CliProgress& progress) {
+    ctx.setProgressCallback(
+        [&progress](const std::string& st, double f, double t) { progress.update(st, f, t); });
+    ctx.setLogCallback([&progress](LogLevel l, const std::string& m) { progress.log(l, m); });
+    gRunning = &ctx;
+    std::signal(SIGINT, onSignal);
+    std::signal(SIGTERM, onSignal);
+  }
+  ~CancellableRun() { gRunning = nullptr; }
+  CancellableRun(const CancellableRun&) = delete;
+  CancellableRun& operator=(const CancellableRun&) = delete;
+  RunContext ctx;
+};
+
 int runMesh(const MeshOptions& o) {
   auto params = buildParameters(o);
   if (!params) return fail(params.status());
@@ -212,14 +229,10 @@ int runMesh(const MeshOptions& o) {
     progress.finish(false);
     return fail(volume.status());
   }
-  RunContext ctx;
-  ctx.setProgressCallback([&](const std::string& st, double f, double t) { progress.update(st, f, t); });
-  ctx.setLogCallback([&](LogLevel l, const std::string& m) { progress.log(l, m); });
-  gRunning = &ctx;
-  std::signal(SIGINT, onSignal);
-  std::signal(SIGTERM, onSignal);
-  auto result = runPipeline(volume.value(), params.value(), ctx);
-  gRunning = nullptr;
+  auto result = [&] {
+    CancellableRun run(progress);
+    return runPipeline(volume.value(), params.value(), run.ctx);
+  }();
   if (!result) {
     progress.finish(false);
     const Status& s = result.status();
@@ -278,14 +291,10 @@ int runOptimize(const std::string& meshPath, const std::string& labelsPath, cons
     progress.finish(false);
     return fail(!mesh ? mesh.status() : labels.status());
   }
-  RunContext ctx;
-  ctx.setProgressCallback([&](const std::string& st, double f, double t) { progress.update(st, f, t); });
-  ctx.setLogCallback([&](LogLevel l, const std::string& m) { progress.log(l, m); });
-  gRunning = &ctx;
-  std::signal(SIGINT, onSignal);
-  std::signal(SIGTERM, onSignal);
-  auto result = optimizeMesh(labels.value(), mesh.value(), params.value(), ctx);
-  gRunning = nullptr;
+  auto result = [&] {
+    CancellableRun run(progress);
+    return optimizeMesh(labels.value(), mesh.value(), params.value(), run.ctx);
+  }();
   if (!result) {
     progress.finish(false);
     return fail(Status(result.status().code(), meshPath + ": " + result.status().message()));

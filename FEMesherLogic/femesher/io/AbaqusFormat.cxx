@@ -53,10 +53,7 @@ void writeIdLines(std::FILE* f, const std::vector<size_t>& ids) {
 
 Status writeInp(const TetMesh& m, const std::string& path, const ExportOptions& o) {
   const SolverDeckTables tables(m);
-  const auto& byLabel = tables.byLabel;
-  const auto& tris = tables.tris;
-  const auto& patches = tables.patches;
-  const auto& elset = tables.elset;
+  const auto& [byLabel, tris, patches, elset] = tables;
   return writeText(path, [&](std::FILE* f) {
     // CalculiX reads at most 132 characters per line.
     std::string heading = "FEMesher " FEMESHER_VERSION " multi-material tet mesh, LPS mm";

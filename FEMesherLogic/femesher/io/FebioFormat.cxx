@@ -23,10 +23,7 @@ std::string xmlEscape(const std::string& s) {
 
 Status writeFeb(const TetMesh& m, const std::string& path, const ExportOptions& o) {
   const SolverDeckTables tables(m);
-  const auto& byLabel = tables.byLabel;
-  const auto& tris = tables.tris;
-  const auto& patches = tables.patches;
-  const auto& elset = tables.elset;
+  const auto& [byLabel, tris, patches, elset] = tables;
   return writeText(path, [&](std::FILE* f) {
     // ISO-8859-1: any byte sequence in a material name keeps the file well-formed.
     std::fprintf(f, "<?xml version=\"1.0\" encoding=\"ISO-8859-1\"?>\n");
