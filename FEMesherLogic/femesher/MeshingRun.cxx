@@ -34,15 +34,6 @@ class StageScope {
   Clock::time_point start_;
 };
 
-/// The working grid's labels as a label map (the medial axis and the sizing field read one).
-LabelVolume workingLabelMap(const PreprocessedVolume& vol) {
-  LabelVolume work;
-  work.dims = vol.dims;
-  work.spacing = vol.spacing;
-  work.labels.assign(vol.labels.begin(), vol.labels.end());
-  return work;
-}
-
 }  // namespace
 
 bool stageEnabled(StageId id, const MeshingParameters& params) {
@@ -106,11 +97,22 @@ void MeshingRun::indicatorFunctions() {
       computeIndicatorFunctions(state_.grid, params_.indicators, ctx_));
 }
 
+const LabelVolume& MeshingRun::workingLabels() {
+  if (!workingLabels_) {
+    auto work = std::make_unique<LabelVolume>();
+    work->dims = state_.grid.dims;
+    work->spacing = state_.grid.spacing;
+    work->labels.assign(state_.grid.labels.begin(), state_.grid.labels.end());
+    workingLabels_ = std::move(work);
+  }
+  return *workingLabels_;
+}
+
 void MeshingRun::medialAxis() {
   SizingParameters sp = params_.sizing;
   sp.threads = ctx_.threads();
   state_.medialAxes = std::make_shared<const LabelMedialAxes>(
-      computeAllMedialAxes(workingLabelMap(state_.grid), medialAxisParameters(sp), ctx_));
+      computeAllMedialAxes(workingLabels(), medialAxisParameters(sp), ctx_));
   state_.medialVoxels = state_.medialAxes->voxelCount();
 }
 
@@ -119,7 +121,8 @@ void MeshingRun::sizingField() {
   sp.threads = ctx_.threads();
   sp.targetEdgeLength = state_.edgeLength;  // the automatic bounds follow the run's edge length
   auto field = std::make_shared<const SizingField>(
-      computeSizingField(workingLabelMap(state_.grid), *state_.medialAxes, sp, ctx_));
+      computeSizingField(workingLabels(), *state_.medialAxes, sp, ctx_));
+  workingLabels_.reset();
   state_.medialAxes.reset();
   state_.sizingField = field;
   const WorkingGrid grid = state_.grid;
@@ -127,7 +130,6 @@ void MeshingRun::sizingField() {
 }
 
 void MeshingRun::adoptVolumeMesh(const TetMesh& mesh) {
-  const auto& table = stageTable();
   if (next_ != int(StageId::IndicatorFunctions) + 1 || !state_.field)
     throw Error(ErrorCode::Internal, "adoptVolumeMesh: run exactly through IndicatorFunctions first");
   const PreprocessedVolume& vol = state_.grid;
@@ -171,9 +173,7 @@ void MeshingRun::adoptVolumeMesh(const TetMesh& mesh) {
                   "Tet " + std::to_string(t) + " of the mesh is inverted or flat: the mesh must "
                   "have positively oriented tets of non-zero volume to be improved.");
   }
-  // Continue with Optimize.
-  for (next_ = 0; next_ < int(table.size()) && table[size_t(next_)].id != StageId::Optimize; ++next_) {
-  }
+  next_ = int(StageId::Optimize);  // continue with Optimize (the table is in StageId order)
 }
 
 void MeshingRun::setSizing(SizingFunction sizing) {

@@ -106,6 +106,7 @@ class MeshingRun {
 
  private:
   void run(StageId id);
+  const LabelVolume& workingLabels();
   void preprocess();
   void indicatorFunctions();
   void medialAxis();
@@ -127,6 +128,8 @@ class MeshingRun {
   MeshingState state_;
   int next_ = 0;          ///< index in stageTable() of the next stage to run
   bool customSizing_ = false;  ///< setSizing was called
+  /// The working grid's labels as a label map, for MedialAxis and SizingField (made once).
+  std::unique_ptr<const LabelVolume> workingLabels_;
 };
 
 }  // namespace femesher

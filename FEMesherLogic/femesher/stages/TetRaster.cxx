@@ -78,6 +78,20 @@ void sampleRange(double mn, double mx, int n, int s, int& lo, int& hi) {
   hi = std::min(n * s - 1, int(std::min(double(n) * s, std::floor(s * (mx + 0.5) - 0.5 + eps))));
 }
 
+/// A tet's corners (continuous voxel index) and their bounding box.
+struct TetCorners {
+  TetCorners(const std::vector<Vec3>& idx, const std::array<int32_t, 4>& T)
+      : a(idx[size_t(T[0])]), b(idx[size_t(T[1])]), c(idx[size_t(T[2])]), d(idx[size_t(T[3])]) {
+    for (int k = 0; k < 3; ++k) {
+      mn[k] = std::min({a[k], b[k], c[k], d[k]});
+      mx[k] = std::max({a[k], b[k], c[k], d[k]});
+    }
+  }
+  TetFrame frame() const { return tetFrame(a, b, c, d); }
+  const Vec3 &a, &b, &c, &d;
+  double mn[3], mx[3];
+};
+
 /// Calls fn(t, vi) for every voxel centre vi in z range [zs, ze] that tet t contains.
 template <class Fn>
 void forEachCentre(const LabelVolume& labels, const TetMesh& mesh, const std::vector<Vec3>& idx,
@@ -85,17 +99,13 @@ void forEachCentre(const LabelVolume& labels, const TetMesh& mesh, const std::ve
   const auto& dims = labels.dims;
   for (size_t t = 0; t < mesh.tets.size(); ++t) {
     if ((t & 0xFFFF) == 0 && ctx && ctx->isCanceled()) return;
-    const auto& T = mesh.tets[t];
-    const Vec3 &a = idx[size_t(T[0])], &b = idx[size_t(T[1])], &c = idx[size_t(T[2])],
-               &d = idx[size_t(T[3])];
+    const TetCorners q(idx, mesh.tets[t]);
     int lo[3], hi[3];
-    for (int k = 0; k < 3; ++k)
-      sampleRange(std::min({a[k], b[k], c[k], d[k]}), std::max({a[k], b[k], c[k], d[k]}), dims[k],
-                  1, lo[k], hi[k]);
+    for (int k = 0; k < 3; ++k) sampleRange(q.mn[k], q.mx[k], dims[k], 1, lo[k], hi[k]);
     lo[2] = std::max(lo[2], zs);
     hi[2] = std::min(hi[2], ze);
     if (lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2]) continue;
-    const TetFrame f = tetFrame(a, b, c, d);
+    const TetFrame f = q.frame();
     if (f.flat) continue;
     for (int z = lo[2]; z <= hi[2]; ++z)
       for (int y = lo[1]; y <= hi[1]; ++y)
@@ -124,12 +134,10 @@ void forEachCutSample(const LabelVolume& labels, const TetMesh& mesh, const std:
   const auto& dims = labels.dims;
   for (size_t t = 0; t < mesh.tets.size(); ++t) {
     if ((t & 0xFFFF) == 0 && ctx && ctx->isCanceled()) return;
-    const auto& T = mesh.tets[t];
-    const Vec3 &a = idx[size_t(T[0])], &b = idx[size_t(T[1])], &c = idx[size_t(T[2])],
-               &d = idx[size_t(T[3])];
+    const TetCorners q(idx, mesh.tets[t]);
     int lo[3], hi[3], slo[3], shi[3];  // voxel range and sub-sample cell range of the tet
     for (int k = 0; k < 3; ++k) {
-      const double mn = std::min({a[k], b[k], c[k], d[k]}), mx = std::max({a[k], b[k], c[k], d[k]});
+      const double mn = q.mn[k], mx = q.mx[k];
       lo[k] = std::max(0, int(std::floor(mn + 0.5)));
       hi[k] = std::min(dims[k] - 1, int(std::floor(mx + 0.5)));
       slo[k] = int(std::floor(s * (mn + 0.5)));
@@ -146,7 +154,7 @@ void forEachCutSample(const LabelVolume& labels, const TetMesh& mesh, const std:
           const size_t vi = labels.index(x, y, z);
           if (!cut[vi]) continue;
           if (!framed) {
-            f = tetFrame(a, b, c, d);
+            f = q.frame();
             framed = true;
           }
           if (f.flat) break;
