@@ -140,11 +140,20 @@ const std::vector<Binding>& bindings() {
         [](MeshingParameters& p, double x) { p.optimize.targetMinDihedral = x; },
         [](const MeshingParameters& p) { return p.optimize.targetMinDihedral; });
     add({"sliver_peel_distance", "double", "voxels", "", 0, 1, "Boundary sliver peeling",
-         "A flat tet with two or three faces on the mesh's outer boundary (background or volume "
-         "box) is removed when it is thinner than this (voxels of the smallest spacing): the outer "
-         "surface moves by at most that much. 0 = never.", true},
+         "A flat tet with a face on the mesh's outer boundary (background or volume box) is "
+         "removed when it is thinner than this (voxels of the smallest spacing; at most 0.2 % of "
+         "a material's volume in all): the outer surface moves by at most that much. A flat tet "
+         "between materials that is this thin joins the material holding most of its faces. "
+         "0 = never.", true},
         [](MeshingParameters& p, double x) { p.optimize.peelDistance = x; },
         [](const MeshingParameters& p) { return p.optimize.peelDistance; });
+    add({"min_fragment_voxels", "double", "voxels", "", 0, 1000, "Floating fragment removal",
+         "After optimisation, pieces of the mesh connected to the rest by no face (floating "
+         "elements: each is a rigid-body mode for a solver) with less volume than this many "
+         "voxels are removed, unless a material would vanish; the report counts them. 0 = keep "
+         "them.", true},
+        [](MeshingParameters& p, double x) { p.optimize.minFragmentVoxels = x; },
+        [](const MeshingParameters& p) { return p.optimize.minFragmentVoxels; });
     add({"optimize_interfaces", "bool", "", "", 0, 1, "Move interface vertices",
          "The optimizer also moves vertices on an interface between two materials (along it) and "
          "on triple lines (along the line), keeping every interface triangle within "

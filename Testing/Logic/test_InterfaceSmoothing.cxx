@@ -37,11 +37,18 @@ struct Optimized {
   RunContext ctx;
 };
 
-std::unique_ptr<Optimized> optimizeShape(const LabelVolume& shape, bool interfaces) {
+/// With keepPoints, nothing is peeled and no fragment removed, so that the optimised mesh keeps
+/// every point at its index (moves can be compared point by point).
+std::unique_ptr<Optimized> optimizeShape(const LabelVolume& shape, bool interfaces,
+                                         bool keepPoints = false) {
   auto o = std::make_unique<Optimized>();
   MeshingParameters p;
   p.run.threads = 1;
   p.optimize.moveInterfaces = interfaces;
+  if (keepPoints) {
+    p.optimize.peelDistance = 0;
+    p.optimize.minFragmentVoxels = 0;
+  }
   o->run = std::make_unique<MeshingRun>(shape, p, o->ctx);
   o->run->runThrough(StageId::VolumeMesh);
   o->before = o->run->state().volumeMesh;
@@ -166,7 +173,9 @@ TEST(InterfaceSmoothing, RunsMoveInterfaceVerticesAndKeepTheInvariants) {
                                    {"one-voxel plate", oneVoxelPlate(), false}};
   size_t flips = 0;
   for (const auto& c : cases) {
-    const auto on = optimizeShape(c.shape, true);
+    // Defaults (peeling and fragment removal on): volumes and the worst angle.
+    expectInterfaceInvariants(*optimizeShape(c.shape, true), c.name + " (defaults)");
+    const auto on = optimizeShape(c.shape, true, true);
     const size_t moved = expectInterfaceInvariants(*on, c.name);
     const size_t counted = on->result.interfaceVertices + on->result.tripleLineVertices;
     flips += on->result.interfaceFlips;
@@ -175,7 +184,7 @@ TEST(InterfaceSmoothing, RunsMoveInterfaceVerticesAndKeepTheInvariants) {
       EXPECT_GT(moved, 0u) << c.name;
     }
     // Off: the same run never moves an interface vertex.
-    const auto off = optimizeShape(c.shape, false);
+    const auto off = optimizeShape(c.shape, false, true);
     EXPECT_EQ(off->result.interfaceVertices + off->result.tripleLineVertices, 0u) << c.name;
     if (c.expectMoves)  // fewer tets below the target than without (the plate: not yet)
       EXPECT_LT(on->result.tetsBelowTargetAfter, off->result.tetsBelowTargetAfter) << c.name;

@@ -226,12 +226,16 @@ TEST(MeshingRun, OptimizeImprovesAnExistingMesh) {
   const auto v0 = labelVolumes(tetgen->mesh), v1 = labelVolumes(improved->mesh);
   ASSERT_EQ(v0.size(), v1.size());
   for (const auto& [label, x] : v0) EXPECT_NEAR(v1.at(label), x, 0.005 * x) << "label " << label;
-  // The same improvement as the Optimize stage of a full run.
+  // The same improvement as the Optimize stage of a full run: the file's round trip through the
+  // oblique physical frame moves points by round-off, which tips a few borderline peels and flips.
   RunContext c2;
   MeshingParameters full = p;
   auto direct = runPipeline(v, full, c2);
   ASSERT_TRUE(direct.isOk());
-  EXPECT_EQ(direct->mesh.tets.size(), improved->mesh.tets.size());
+  EXPECT_NEAR(double(direct->mesh.tets.size()), double(improved->mesh.tets.size()),
+              2e-3 * double(direct->mesh.tets.size()));
+  EXPECT_NEAR(direct->quality.minDihedralBelow15, after.minDihedralBelow15,
+              0.2 * double(direct->quality.minDihedralBelow15) + 5);
 
   // Another label map: refused with a message naming it.
   LabelVolume other = makePhantom();

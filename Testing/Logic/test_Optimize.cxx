@@ -67,73 +67,155 @@ TEST(Optimize, MinDihedralOfRegularFlatAndInvertedTets) {
   EXPECT_EQ(tetMinDihedral({0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {0, 1, 0}), -1);  // flat
 }
 
-TEST(Optimize, PeelsAFlatBoundaryCapOnlyWhenThinnerThanTheTolerance) {
-  // A corner tet and a cap on its slanted face, lifted by `lift` along the face normal.
-  for (const double lift : {0.01, 0.2}) {
-    std::vector<Vec3> p = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+namespace {
+
+/// A corner tet (0, 1, 2, 3) and a cap (1, 2, 3, 4) on its slanted face, lifted by `lift` along
+/// the face normal; with `bulk`, a large regular tet of the same material far away (its own
+/// piece), so that the cap is a small share of the material's volume.
+struct CornerWithCap {
+  std::vector<Vec3> p = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  Tets t = {{0, 1, 2, 3}, {1, 2, 3, 4}};
+  std::vector<int32_t> labels = {1, 1};
+  CornerWithCap(double lift, bool bulk) {
     const double s = 1.0 / 3.0, n = 1.0 / std::sqrt(3.0);
     p.push_back({s + lift * n, s + lift * n, s + lift * n});
-    Tets t = {{0, 1, 2, 3}, {1, 2, 3, 4}};
     if (tetMinDihedral(p[1], p[2], p[3], p[4]) < 0) std::swap(t[1][0], t[1][1]);
-    ASSERT_GT(tetMinDihedral(p[t[1][0]], p[t[1][1]], p[t[1][2]], p[t[1][3]]), 0);
-    std::vector<int32_t> labels = {1, 1};
+    if (bulk) addBulk(100, 1);
+  }
+  /// A regular tet of edge 40 * sqrt(2) centred at (x, x, x), its own piece.
+  void addBulk(double x, int32_t label) {
+    const double L = 20;
+    const int32_t first = int32_t(p.size());
+    for (const Vec3& q : {Vec3{x + L, x + L, x + L}, Vec3{x + L, x - L, x - L},
+                          Vec3{x - L, x + L, x - L}, Vec3{x - L, x - L, x + L}})
+      p.push_back(q);
+    std::array<int32_t, 4> T{first, first + 1, first + 2, first + 3};
+    if (tetMinDihedral(p[T[0]], p[T[1]], p[T[2]], p[T[3]]) < 0) std::swap(T[0], T[1]);
+    t.push_back(T);
+    labels.push_back(label);
+  }
+};
+
+}  // namespace
+
+TEST(Optimize, PeelsAFlatBoundaryCapOnlyWhenThinnerThanTheTolerance) {
+  for (const double lift : {0.01, 0.2}) {
+    CornerWithCap m(lift, true);
+    ASSERT_GT(minOver(m.p, m.t), 0);
     RunContext ctx;
     OptimizeParameters op;
     op.peelDistance = 0.05;
     op.targetMinDihedral = 20;
-    const auto r = optimizeTetMesh(p, t, labels, op, ctx);
+    op.minFragmentVoxels = 0;
+    const auto r = optimizeTetMesh(m.p, m.t, m.labels, op, ctx);
     if (lift < op.peelDistance) {
       EXPECT_EQ(r.peeledTets, 1u);
-      EXPECT_EQ(t.size(), 1u);
-      EXPECT_EQ(p.size(), 4u) << "the cap's apex is dropped with it";
+      EXPECT_EQ(m.t.size(), 2u);
+      EXPECT_EQ(m.p.size(), 8u) << "the cap's apex is dropped with it";
     } else {
       EXPECT_EQ(r.peeledTets, 0u);
-      EXPECT_EQ(t.size(), 2u);
+      EXPECT_EQ(m.t.size(), 3u);
     }
   }
 }
 
-TEST(Optimize, NeverPeelsAMaterialsLastTetNorWithZeroTolerance) {
-  std::vector<Vec3> p = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0.3, 0.3, 0.001}};
-  Tets t = {{0, 1, 2, 3}};
-  std::vector<int32_t> labels = {4};
+TEST(Optimize, PeelingStaysWithinTheMaterialsVolumeBudget) {
+  // Without the far bulk the cap is 2 % of its material's volume: more than peeling may take.
+  CornerWithCap m(0.01, false);
   RunContext ctx;
   OptimizeParameters op;
-  op.peelDistance = 1;
-  auto r = optimizeTetMesh(p, t, labels, op, ctx);
-  EXPECT_EQ(t.size(), 1u);
+  op.peelDistance = 0.05;
+  op.targetMinDihedral = 20;
+  op.minFragmentVoxels = 0;
+  const double before = labelVolumes(m.p, m.t, m.labels).at(1);
+  const auto r = optimizeTetMesh(m.p, m.t, m.labels, op, ctx);
   EXPECT_EQ(r.peeledTets, 0u);
+  EXPECT_NEAR(labelVolumes(m.p, m.t, m.labels).at(1), before, 1e-12) << "flips keep the volume";
 }
 
-TEST(Optimize, SmoothsAnInteriorVertexBackToTheMiddle) {
-  // Unit cube: its 8 corners and one interior vertex, 12 tets (a fan over the 12 face triangles).
-  std::vector<Vec3> p;
-  for (int k = 0; k < 2; ++k)
-    for (int j = 0; j < 2; ++j)
-      for (int i = 0; i < 2; ++i) p.push_back({double(i), double(j), double(k)});
-  p.push_back({0.5, 0.5, 0.03});  // pushed against the bottom face
-  const int faces[6][4] = {{0, 1, 3, 2}, {4, 6, 7, 5}, {0, 4, 5, 1},
-                           {2, 3, 7, 6}, {0, 2, 6, 4}, {1, 5, 7, 3}};
-  Tets t;
-  for (const auto& f : faces)
-    for (const auto& tri : {std::array<int, 3>{f[0], f[1], f[2]}, std::array<int, 3>{f[0], f[2], f[3]}}) {
-      std::array<int32_t, 4> T{tri[0], tri[1], tri[2], 8};
-      if (tetMinDihedral(p[T[0]], p[T[1]], p[T[2]], p[T[3]]) < 0) std::swap(T[0], T[1]);
-      t.push_back(T);
-    }
-  ASSERT_GT(minOver(p, t), 0);
-  const double before = minOver(p, t);
-  ASSERT_LT(before, 5);
-  const auto corners = std::vector<Vec3>(p.begin(), p.begin() + 8);
-  std::vector<int32_t> labels(t.size(), 2);
+TEST(Optimize, RemovesFloatingFragmentsButNeverAMaterialsLastPiece) {
+  // Material 1: the bulk tet and the corner + cap (a separate piece of 0.17 mm^3); material 2: a
+  // lone tiny tet, its only piece.
+  CornerWithCap m(0.3, true);
+  const size_t first2 = m.p.size();
+  for (const Vec3& q : {Vec3{-50, -50, -50}, Vec3{-49.5, -50, -50}, Vec3{-50, -49.5, -50},
+                        Vec3{-50, -50, -49.5}})
+    m.p.push_back(q);
+  std::array<int32_t, 4> T{int32_t(first2), int32_t(first2 + 1), int32_t(first2 + 2),
+                           int32_t(first2 + 3)};
+  if (tetMinDihedral(m.p[T[0]], m.p[T[1]], m.p[T[2]], m.p[T[3]]) < 0) std::swap(T[0], T[1]);
+  m.t.push_back(T);
+  m.labels.push_back(2);
   RunContext ctx;
   OptimizeParameters op;
-  op.targetMinDihedral = 30;
-  const auto r = optimizeTetMesh(p, t, labels, op, ctx);
-  EXPECT_GE(r.smoothedVertices, 1u);
-  EXPECT_GT(minOver(p, t), 20) << "the interior vertex should move well away from the face";
-  EXPECT_EQ(std::vector<Vec3>(p.begin(), p.begin() + 8), corners) << "boundary vertices moved";
-  EXPECT_EQ(r.peeledTets, 0u);
+  op.targetMinDihedral = 0;  // the improvement itself is off; fragments go all the same
+  op.minFragmentVoxels = 1;
+  op.voxelVolume = 0.5;  // 0.5 mm^3: the corner piece and the lone tet are lighter
+  const auto r = optimizeTetMesh(m.p, m.t, m.labels, op, ctx);
+  EXPECT_EQ(r.fragments, 1u);
+  EXPECT_EQ(r.fragmentTets, 2u);
+  EXPECT_NEAR(r.fragmentVolume, 1.0 / 6 + std::sqrt(3.0) / 2 * 0.3 / 3, 1e-9);
+  ASSERT_EQ(m.t.size(), 2u);
+  EXPECT_EQ(std::vector<int32_t>(m.labels), (std::vector<int32_t>{1, 2}))
+      << "the bulk of material 1 and material 2's only piece stay";
+  EXPECT_EQ(m.p.size(), 8u) << "the fragment's points are dropped";
+  // Off: nothing is removed.
+  CornerWithCap again(0.3, true);
+  op.minFragmentVoxels = 0;
+  const auto r0 = optimizeTetMesh(again.p, again.t, again.labels, op, ctx);
+  EXPECT_EQ(r0.fragments, 0u);
+  EXPECT_EQ(again.t.size(), 3u);
+}
+
+TEST(Optimize, RelabelsAFlatTetInsideAnotherMaterialAndThenRemovesIt) {
+  // The cap (material 2) sits on the corner tet's slanted face; three tets of material 1 over its
+  // three outer faces (apex far out along the normal) close it in: all four of its faces are on
+  // material 1. A far bulk tet of material 2 keeps that material alive.
+  auto closedIn = [] {
+    CornerWithCap m(0.01, true);
+    m.labels = {1, 2, 2};
+    m.addBulk(-100, 1);  // both materials large: the relabelling is within their volume budget
+    const double s = 1.0 / 3.0, n = 1.0 / std::sqrt(3.0);
+    m.p.push_back({s + n, s + n, s + n});
+    const int32_t apex = int32_t(m.p.size() - 1);
+    for (const auto& e : {std::array<int32_t, 2>{1, 2}, std::array<int32_t, 2>{2, 3},
+                          std::array<int32_t, 2>{3, 1}}) {
+      std::array<int32_t, 4> T{e[0], e[1], 4, apex};
+      if (tetMinDihedral(m.p[T[0]], m.p[T[1]], m.p[T[2]], m.p[T[3]]) < 0) std::swap(T[0], T[1]);
+      m.t.push_back(T);
+      m.labels.push_back(1);
+    }
+    return m;
+  };
+  OptimizeInterfaces in;
+  in.projectOntoInterface = [](int, int, Vec3&) { return true; };
+  in.facetDistance = 1;
+  RunContext ctx;
+  OptimizeParameters op;
+  op.targetMinDihedral = 20;
+  op.minFragmentVoxels = 0;
+  for (const double tolerance : {0.05, 0.001}) {
+    CornerWithCap m = closedIn();
+    ASSERT_GT(minOver(m.p, m.t), 0);
+    const double before = minOver(m.p, m.t);
+    ASSERT_LT(before, 2);
+    const auto volumeBefore = labelVolumes(m.p, m.t, m.labels);
+    op.peelDistance = tolerance;
+    const auto r = optimizeTetMesh(m.p, m.t, m.labels, op, in, ctx);
+    if (tolerance < 0.01) {  // thicker than the tolerance: it stays in material 2
+      EXPECT_EQ(r.relabelledTets, 0u);
+      EXPECT_EQ(m.labels[1], 2);
+      continue;
+    }
+    EXPECT_EQ(r.relabelledTets, 1u);
+    EXPECT_GE(r.edgeRemovals + r.faceFlips + r.smoothedVertices, 1u)
+        << "inside material 1, the flat tet is flipped or smoothed away";
+    EXPECT_GT(minOver(m.p, m.t), before);
+    const auto volumeAfter = labelVolumes(m.p, m.t, m.labels);
+    EXPECT_NEAR(volumeAfter.at(1) + volumeAfter.at(2), volumeBefore.at(1) + volumeBefore.at(2),
+                1e-9);
+    EXPECT_NEAR(volumeAfter.at(2), volumeBefore.at(2) - std::sqrt(3.0) / 2 * 0.01 / 3, 1e-9);
+  }
 }
 
 TEST(Optimize, PhantomMeshKeepsItsMaterialInterfacesAndLosesSlivers) {

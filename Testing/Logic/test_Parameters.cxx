@@ -66,7 +66,7 @@ TEST(Parameters, UserDefaultsAreTheStageDefaults) {
   EXPECT_EQ(p.boundary.facetDistance, BoundaryMeshParameters{}.facetDistance);
   EXPECT_EQ(getParameter(p, "max_radius_edge_ratio"), "2");
   EXPECT_EQ(p.volume.maxRadiusEdgeRatio, VolumeMeshParameters{}.maxRadiusEdgeRatio);
-  EXPECT_EQ(getParameter(p, "sliver_peel_distance"), "0.1");
+  EXPECT_EQ(getParameter(p, "sliver_peel_distance"), "0.3");
   EXPECT_EQ(p.optimize.peelDistance, OptimizeParameters{}.peelDistance);
   EXPECT_EQ(getParameter(p, "sizing"), "adaptive");
   EXPECT_EQ(getParameter(p, "surface_mesher"), "delaunay");

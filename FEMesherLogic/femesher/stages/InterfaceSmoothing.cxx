@@ -250,6 +250,68 @@ bool flipInterfaceEdge(Editor& m, uint32_t t, const OptimizeInterfaces& in,
   return false;
 }
 
+bool relabelFlatTet(Editor& m, uint32_t t, const OptimizeInterfaces& in, double tolerance,
+                    std::vector<uint32_t>& fresh) {
+  const int own = m.labels[t];
+  if (tolerance <= 0 || m.perLabel[size_t(own)] <= 1 || !(m.thickness(t) <= tolerance))
+    return false;
+  int64_t nb[4];
+  int ownFaces = 0;
+  for (int k = 0; k < 4; ++k) {
+    const auto f = m.face(t, k);
+    nb[k] = m.across(t, f[0], f[1], f[2]);
+    if (nb[k] < 0) return false;  // outer boundary: peeling's business
+    ownFaces += m.labels[size_t(nb[k])] == own;
+  }
+  // Candidates: the other materials on t's faces, most faces first (ties: smaller label).
+  std::vector<std::pair<int, int>> candidates;  // (-faces, label)
+  for (int k = 0; k < 4; ++k) {
+    const int l = m.labels[size_t(nb[k])];
+    if (l == own) continue;
+    int n = 0;
+    for (int j = 0; j < 4; ++j) n += m.labels[size_t(nb[j])] == l;
+    if (std::find(candidates.begin(), candidates.end(), std::make_pair(-n, l)) == candidates.end())
+      candidates.push_back({-n, l});
+  }
+  std::sort(candidates.begin(), candidates.end());
+  const double v = m.volume(t);
+  for (const auto& [negFaces, other] : candidates) {
+    // More faces on `other` than on its own material: the relabelling lowers the number of
+    // constrained faces (so it cannot be undone and redone). As many: only when an edge of t
+    // can then be removed inside `other` (an interface flip of a more general kind).
+    if (-negFaces < ownFaces) break;
+    bool near = true;  // every face that becomes an interface stays within the facet distance
+    for (int k = 0; k < 4 && near; ++k) {
+      const int l = m.labels[size_t(nb[k])];
+      if (l == other) continue;
+      const InterfaceFace f{m.face(t, k), std::min(l, other), std::max(l, other), {0, 0, 0}};
+      const double d = centroidDistance(m, in, f);
+      near = d >= 0 && d <= in.facetDistance;
+    }
+    if (!near ||
+        std::fabs(m.movedVolume[size_t(own)] - v) > kVolumeBudget * m.startVolume[size_t(own)] ||
+        std::fabs(m.movedVolume[size_t(other)] + v) > kVolumeBudget * m.startVolume[size_t(other)])
+      continue;
+    m.relabel(t, other);
+    bool done = -negFaces > ownFaces;
+    if (done) {
+      fresh.push_back(t);
+    } else {
+      const auto T = m.tets[t];
+      for (int i = 0; i < 4 && !done; ++i)
+        for (int j = i + 1; j < 4 && !done; ++j) done = removeEdge(m, t, T[size_t(i)], T[size_t(j)], fresh);
+    }
+    if (!done) {
+      m.relabel(t, own);
+      continue;
+    }
+    m.movedVolume[size_t(own)] -= v;
+    m.movedVolume[size_t(other)] += v;
+    return true;
+  }
+  return false;
+}
+
 }  // namespace optimize_detail
 
 OptimizeInterfaces indicatorInterfaces(const IndicatorField& field, double facetDistanceVoxels) {

@@ -259,64 +259,28 @@ bool flatPatch(const Editor& m, int32_t v, double tolerance, Vec3& normal) {
   return true;
 }
 
-/// Removes a flat tet with two, three or four faces on the outer boundary (see Optimize.h).
-bool peel(Editor& m, uint32_t t, double tolerance) {
-  if (tolerance <= 0 || m.perLabel[size_t(m.labels[t])] <= 1) return false;
-  const auto& T = m.tets[t];
-  int outer[4], nOuter = 0;
+/// Share of a material's volume that peeling may remove in all.
+constexpr double kPeelBudget = 2e-3;
+
+/// Removes a flat tet with a face on the outer boundary (see Optimize.h); the tets across its
+/// other faces (now on the outer boundary) go to `fresh`.
+bool peel(Editor& m, uint32_t t, double tolerance, std::vector<uint32_t>& fresh) {
+  const size_t label = size_t(m.labels[t]);
+  if (tolerance <= 0 || m.perLabel[label] <= 1) return false;
+  int64_t nb[4];
+  bool outer = false;
   for (int k = 0; k < 4; ++k) {
     const auto f = m.face(t, k);
-    if (m.across(t, f[0], f[1], f[2]) < 0) outer[nOuter++] = k;
+    nb[k] = m.across(t, f[0], f[1], f[2]);
+    outer |= nb[k] < 0;
   }
-  std::vector<uint32_t> ring;
-  if (nOuter == 2) {
-    // Outer faces opposite c and d share the edge (a, b): removing t flips ab to cd.
-    const int32_t c = T[size_t(outer[0])], d = T[size_t(outer[1])];
-    int32_t ab[2], n = 0;
-    for (int32_t x : T)
-      if (x != c && x != d) ab[n++] = x;
-    m.tetsOnEdge(ab[0], ab[1], ring);
-    if (ring.size() != 1) return false;  // ab would stay in other tets: not a surface flip
-    m.tetsOnEdge(c, d, ring);
-    for (uint32_t s : ring)  // cd must not be on the boundary already (non-manifold after)
-      for (int k = 0; k < 4; ++k) {
-        const int32_t x = m.tets[s][size_t(k)];
-        if (x == c || x == d || s == t) continue;
-        const auto f = m.face(s, k);
-        if (m.across(s, f[0], f[1], f[2]) < 0) return false;
-      }
-    const Vec3 &A = m.pts[size_t(ab[0])], &B = m.pts[size_t(ab[1])], &C = m.pts[size_t(c)],
-               &D = m.pts[size_t(d)];
-    const Vec3 nrm = cross(sub(B, A), sub(D, C));
-    const double len = norm(nrm);
-    if (!(len > 0)) return false;
-    if (std::fabs(dot(nrm, sub(C, A))) / len > tolerance) return false;
-  } else if (nOuter == 3) {
-    int inner = 0;
-    while (inner == outer[0] || inner == outer[1] || inner == outer[2]) ++inner;
-    const int32_t apex = T[size_t(inner)];
-    if (m.around[size_t(apex)].size() != 1) return false;
-    const auto f = m.face(t, inner);
-    const Vec3 &A = m.pts[size_t(f[0])], &B = m.pts[size_t(f[1])], &C = m.pts[size_t(f[2])];
-    const Vec3 nrm = cross(sub(B, A), sub(C, A));
-    const double len = norm(nrm);
-    if (!(len > 0)) return false;
-    if (std::fabs(dot(nrm, sub(m.pts[size_t(apex)], A))) / len > tolerance) return false;
-  } else if (nOuter == 4) {  // an isolated tet: drop it when flat (it holds no volume)
-    double height = 1e300;
-    for (int k = 0; k < 4; ++k) {
-      const auto f = m.face(t, k);
-      const Vec3 &A = m.pts[size_t(f[0])], &B = m.pts[size_t(f[1])], &C = m.pts[size_t(f[2])];
-      const Vec3 nrm = cross(sub(B, A), sub(C, A));
-      const double len = norm(nrm);
-      if (len > 0)
-        height = std::min(height, std::fabs(dot(nrm, sub(m.pts[size_t(T[size_t(k)])], A))) / len);
-    }
-    if (height > tolerance) return false;
-  } else {
-    return false;
-  }
+  if (!outer || !(m.thickness(t) <= tolerance)) return false;
+  const double v = m.volume(t);
+  if (m.peeledVolume[label] + v > kPeelBudget * m.startVolume[label]) return false;
+  m.peeledVolume[label] += v;
   m.kill(t);
+  for (int64_t s : nb)
+    if (s >= 0) fresh.push_back(uint32_t(s));
   return true;
 }
 
@@ -371,34 +335,27 @@ double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d
   return std::acos(std::clamp(maxCos, -1.0, 1.0)) * kRadToDeg;
 }
 
-OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
-                               std::vector<int32_t>& labels, const OptimizeParameters& params,
-                               RunContext& ctx) {
-  return optimizeTetMesh(points, tets, labels, params, OptimizeInterfaces{}, ctx);
+namespace {
+
+/// Drops the points no tet uses (indices renumbered, order kept).
+void dropUnusedPoints(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets) {
+  std::vector<int32_t> newId(points.size(), -1);
+  for (const auto& T : tets)
+    for (int32_t v : T) newId[size_t(v)] = 0;
+  std::vector<Vec3> keptPoints;
+  for (size_t i = 0; i < points.size(); ++i)
+    if (newId[i] == 0) {
+      newId[i] = int32_t(keptPoints.size());
+      keptPoints.push_back(points[i]);
+    }
+  for (auto& T : tets)
+    for (auto& v : T) v = newId[size_t(v)];
+  points.swap(keptPoints);
 }
 
-OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
-                               std::vector<int32_t>& labels, const OptimizeParameters& params,
-                               const OptimizeInterfaces& interfaces, RunContext& ctx) {
-  OptimizeResult r;
-  auto survey = [&](size_t& below, size_t& below5, double& mn) {
-    below = below5 = 0;
-    mn = tets.empty() ? 0 : 1e300;
-    for (const auto& T : tets) {
-      const double q = std::max(0.0, tetMinDihedral(points[size_t(T[0])], points[size_t(T[1])],
-                                                    points[size_t(T[2])], points[size_t(T[3])]));
-      mn = std::min(mn, q);
-      below += q < params.targetMinDihedral;
-      below5 += q < 5;
-    }
-  };
-  survey(r.tetsBelowTargetBefore, r.tetsBelow5Before, r.minDihedralBefore);
-  if (params.targetMinDihedral <= 0 || r.tetsBelowTargetBefore == 0) {
-    r.tetsBelowTargetAfter = r.tetsBelowTargetBefore;
-    r.tetsBelow5After = r.tetsBelow5Before;
-    r.minDihedralAfter = r.minDihedralBefore;
-    return r;
-  }
+void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
+             std::vector<int32_t>& labels, const OptimizeParameters& params,
+             const OptimizeInterfaces& interfaces, RunContext& ctx, OptimizeResult& r) {
   Editor m(points, tets, labels);
   std::vector<uint32_t> queue, fresh;
   for (uint32_t t = 0; t < tets.size(); ++t)
@@ -418,7 +375,7 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
       if (!m.alive[t] || m.quality(t) >= params.targetMinDihedral) continue;
       fresh.clear();
       bool changed = false;
-      if (peel(m, t, params.peelDistance * params.voxelSize)) {
+      if (peel(m, t, params.peelDistance * params.voxelSize, fresh)) {
         ++r.peeledTets;
         changed = true;
       }
@@ -441,6 +398,11 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
         ++r.interfaceFlips;
         changed = true;
       }
+      if (!changed && params.moveInterfaces && interfaces.enabled() &&
+          relabelFlatTet(m, t, interfaces, params.peelDistance * params.voxelSize, fresh)) {
+        ++r.relabelledTets;
+        changed = true;
+      }
       if (!changed && params.smooth) {
         for (int32_t v : m.tets[t])
           if (moveVertex(m, v, params, interfaces, r)) {
@@ -461,28 +423,125 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
   // Compact: alive tets, used points (order kept).
   std::vector<std::array<int32_t, 4>> keptTets;
   std::vector<int32_t> keptLabels;
-  std::vector<int32_t> newId(points.size(), -1);
   for (size_t t = 0; t < tets.size(); ++t) {
     if (!m.alive[t]) continue;
     keptTets.push_back(tets[t]);
     keptLabels.push_back(labels[t]);
-    for (int32_t v : tets[t]) newId[size_t(v)] = 0;
   }
-  std::vector<Vec3> keptPoints;
-  for (size_t i = 0; i < points.size(); ++i)
-    if (newId[i] == 0) {
-      newId[i] = int32_t(keptPoints.size());
-      keptPoints.push_back(points[i]);
-    }
-  for (auto& T : keptTets)
-    for (auto& v : T) v = newId[size_t(v)];
-  points.swap(keptPoints);
   tets.swap(keptTets);
   labels.swap(keptLabels);
+  dropUnusedPoints(points, tets);
+}
+
+
+/// Removes the face-connected pieces of the mesh (over all materials) lighter than `minVolume`
+/// mm^3, except a piece holding a material's last tets. Points are left to the caller.
+void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
+                     std::vector<int32_t>& labels, double minVolume, OptimizeResult& r) {
+  const size_t n = tets.size();
+  if (n == 0) return;
+  // Union-find over tets sharing a face (faces matched by sorting their vertex triples).
+  std::vector<uint32_t> parent(n);
+  std::iota(parent.begin(), parent.end(), 0u);
+  auto find = [&](uint32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  std::vector<std::pair<std::array<int32_t, 3>, uint32_t>> faces;
+  faces.reserve(4 * n);
+  for (uint32_t t = 0; t < n; ++t)
+    for (int k = 0; k < 4; ++k) {
+      std::array<int32_t, 3> f;
+      int c = 0;
+      for (int i = 0; i < 4; ++i)
+        if (i != k) f[size_t(c++)] = tets[t][size_t(i)];
+      std::sort(f.begin(), f.end());
+      faces.push_back({f, t});
+    }
+  std::sort(faces.begin(), faces.end());
+  for (size_t i = 1; i < faces.size(); ++i)
+    if (faces[i].first == faces[i - 1].first) {
+      const uint32_t a = find(faces[i].second), b = find(faces[i - 1].second);
+      if (a != b) parent[a] = b;
+    }
+  std::vector<double> volume(n, 0);
+  std::vector<size_t> perLabel;
+  for (uint32_t t = 0; t < n; ++t) {
+    const auto& T = tets[t];
+    const Vec3 &A = points[size_t(T[0])], &B = points[size_t(T[1])], &C = points[size_t(T[2])],
+               &D = points[size_t(T[3])];
+    volume[find(t)] += std::fabs(dot(cross(sub(B, A), sub(C, A)), sub(D, A))) / 6;
+    if (size_t(labels[t]) >= perLabel.size()) perLabel.resize(size_t(labels[t]) + 1, 0);
+    ++perLabel[size_t(labels[t])];
+  }
+  // Lightest pieces first, so that a material keeps its largest piece when all are light.
+  std::vector<uint32_t> roots;
+  for (uint32_t t = 0; t < n; ++t)
+    if (find(t) == t && volume[t] < minVolume) roots.push_back(t);
+  std::sort(roots.begin(), roots.end(),
+            [&](uint32_t a, uint32_t b) { return volume[a] != volume[b] ? volume[a] < volume[b] : a < b; });
+  std::vector<std::vector<uint32_t>> members(n);
+  for (uint32_t t = 0; t < n; ++t)
+    if (volume[find(t)] < minVolume) members[find(t)].push_back(t);
+  std::vector<char> drop(n, 0);
+  for (uint32_t root : roots) {
+    std::vector<size_t> take(perLabel.size(), 0);
+    for (uint32_t t : members[root]) ++take[size_t(labels[t])];
+    bool last = false;
+    for (size_t l = 0; l < take.size(); ++l) last |= take[l] > 0 && take[l] >= perLabel[l];
+    if (last) continue;
+    for (size_t l = 0; l < take.size(); ++l) perLabel[l] -= take[l];
+    for (uint32_t t : members[root]) drop[t] = 1;
+    ++r.fragments;
+    r.fragmentTets += members[root].size();
+    r.fragmentVolume += volume[root];
+  }
+  if (r.fragmentTets == 0) return;
+  std::vector<std::array<int32_t, 4>> keptTets;
+  std::vector<int32_t> keptLabels;
+  for (uint32_t t = 0; t < n; ++t)
+    if (!drop[t]) {
+      keptTets.push_back(tets[t]);
+      keptLabels.push_back(labels[t]);
+    }
+  tets.swap(keptTets);
+  labels.swap(keptLabels);
+  dropUnusedPoints(points, tets);
+}
+
+}  // namespace
+
+OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
+                               std::vector<int32_t>& labels, const OptimizeParameters& params,
+                               RunContext& ctx) {
+  return optimizeTetMesh(points, tets, labels, params, OptimizeInterfaces{}, ctx);
+}
+
+OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
+                               std::vector<int32_t>& labels, const OptimizeParameters& params,
+                               const OptimizeInterfaces& interfaces, RunContext& ctx) {
+  OptimizeResult r;
+  auto survey = [&](size_t& below, size_t& below5, double& mn) {
+    below = below5 = 0;
+    mn = tets.empty() ? 0 : 1e300;
+    for (const auto& T : tets) {
+      const double q = std::max(0.0, tetMinDihedral(points[size_t(T[0])], points[size_t(T[1])],
+                                                    points[size_t(T[2])], points[size_t(T[3])]));
+      mn = std::min(mn, q);
+      below += q < params.targetMinDihedral;
+      below5 += q < 5;
+    }
+  };
+  survey(r.tetsBelowTargetBefore, r.tetsBelow5Before, r.minDihedralBefore);
+  if (params.targetMinDihedral > 0 && r.tetsBelowTargetBefore > 0)
+    improve(points, tets, labels, params, interfaces, ctx, r);
+  if (params.minFragmentVoxels > 0)
+    removeFragments(points, tets, labels, params.minFragmentVoxels * params.voxelVolume, r);
   survey(r.tetsBelowTargetAfter, r.tetsBelow5After, r.minDihedralAfter);
   ctx.progress(1.0);
   return r;
 }
+
 
 ReportCounts reportCounts(const OptimizeResult& r) {
   return {{"optimize_tets_below_target_before", double(r.tetsBelowTargetBefore)},
@@ -498,6 +557,10 @@ ReportCounts reportCounts(const OptimizeResult& r) {
           {"optimize_triple_line_vertex_moves", double(r.tripleLineVertices)},
           {"optimize_interface_flips", double(r.interfaceFlips)},
           {"optimize_peeled_tets", double(r.peeledTets)},
+          {"optimize_relabelled_tets", double(r.relabelledTets)},
+          {"optimize_fragments_removed", double(r.fragments)},
+          {"optimize_fragment_tets", double(r.fragmentTets)},
+          {"optimize_fragment_volume_mm3", r.fragmentVolume},
           {"optimize_passes", double(r.passes)}};
 }
 

@@ -17,11 +17,11 @@
 ///    line search along the worst tet's gradient); a vertex of the outer boundary alone whose
 ///    boundary faces are flat (all their vertices within `peelDistance` of one plane) slides
 ///    within that plane the same way;
-///  - peeling: a flat tet with two, three or four faces on the mesh's outer boundary (faces with
-///    no other tet: the interface with the background or the volume's box) is removed when its
-///    thickness is below `peelDistance` (never a material's last tet). That flips two nearly
-///    coplanar boundary triangles, drops a nearly flat cap or an isolated flat tet, and moves the
-///    outer boundary by at most `peelDistance`.
+///  - peeling: a flat tet with a face on the mesh's outer boundary (faces with no other tet: the
+///    interface with the background or the volume's box) is removed when its thickness (smallest
+///    altitude) is below `peelDistance` (never a material's last tet, at most 0.2 % of a
+///    material's volume in all). That flips two nearly coplanar boundary triangles, drops a flat
+///    cap, fin or isolated tet, and moves the outer boundary by at most `peelDistance`.
 ///  - smoothing of interface vertices (given the smooth interfaces, OptimizeInterfaces, see
 ///    InterfaceSmoothing.h): a vertex with exactly two materials around (outside the mesh, away
 ///    from the volume's box, counting as background 0) moves in the tangent plane of its
@@ -30,10 +30,15 @@
 ///    with it, so the mesh stays conformal. A move is kept only when it raises the worst tet of
 ///    the star (see InterfaceSmoothing.h for the distance and volume bounds). Vertices with four
 ///    or more materials around, and vertices of an interface on the volume's box, stay;
+///  - relabelling: a flat tet (thinner than `peelDistance`) with no outer face and more faces on
+///    one other material than on its own joins that material (the new interface triangles within
+///    `facet_distance`, within the volume budget of interface moves); it then has fewer
+///    constrained faces and the flips above can remove it;
 ///  - interface edge flips: a flat tet with two faces on the interface with one other material
 ///    (its other faces inside its own) joins that material when the edge it leaves inside it can
 ///    then be removed (the edge removal above): the two interface triangles on that edge become
 ///    the tet's two other faces.
+/// Last, floating fragments (minFragmentVoxels) are removed.
 /// Interface triangles change only by these moves and flips, which relabel or re-triangulate
 /// whole tets: every interface triangle stays shared by the tets of both sides,
 /// so the mesh stays conformal. The result is
@@ -60,10 +65,16 @@ struct OptimizeParameters {
   /// Flat tets with two to four faces on the outer boundary (background or volume box) thinner
   /// than this, in voxels of the smallest spacing, are removed (the outer boundary moves by at
   /// most that much; 0 = never); flat outer-boundary patches may slide by as much.
-  double peelDistance = 0.1;
+  double peelDistance = 0.3;
   /// The length of that voxel in the mesh's frame (mm): peelDistance × voxelSize is the distance.
   /// A run sets it from its grid's smallest spacing; 1 when the mesh is in voxel units.
   double voxelSize = 1.0;
+  /// Pieces of the mesh connected to nothing else by a face (floating elements: a solver sees a
+  /// rigid-body mode in each) whose volume is below this many voxels are removed, unless a
+  /// material would vanish. They are specks a thin part leaves behind; 0 = keep them.
+  double minFragmentVoxels = 1.0;
+  /// The volume of one voxel (mm^3; a run sets the product of its grid's spacings).
+  double voxelVolume = 1.0;
   /// Move interior vertices.
   bool smooth = true;
   /// Move interface and triple-line vertices along their interfaces (needs OptimizeInterfaces).
@@ -106,13 +117,18 @@ struct OptimizeResult {
   size_t tripleLineVertices = 0;  ///< triple-line vertex moves
   size_t interfaceFlips = 0;      ///< interface edge flips
   size_t peeledTets = 0;        ///< flat boundary tets removed
+  size_t relabelledTets = 0;    ///< flat interface tets given to the neighbouring material
+  size_t fragments = 0;         ///< floating fragments removed (see minFragmentVoxels)
+  size_t fragmentTets = 0;      ///< their tets
+  double fragmentVolume = 0;    ///< their volume, mm^3
   int passes = 0;               ///< rounds run
 };
 
 /// Report figures: optimize_tets_below_target_before/after, optimize_tets_below_5deg_before/after,
 /// optimize_min_dihedral_before/after, optimize_edge_removals, optimize_face_flips,
 /// optimize_smoothed_vertices, optimize_interface_vertex_moves, optimize_triple_line_vertex_moves,
-/// optimize_interface_flips, optimize_peeled_tets, optimize_passes.
+/// optimize_interface_flips, optimize_peeled_tets, optimize_relabelled_tets,
+/// optimize_fragments_removed, optimize_fragment_tets, optimize_fragment_volume_mm3, optimize_passes.
 ReportCounts reportCounts(const OptimizeResult& result);
 
 /// Minimum dihedral angle of a tet in degrees; -1 when it is not positively oriented (or flat).

@@ -7,6 +7,7 @@
 #include <femesher/stages/Optimize.h>
 
 #include <algorithm>
+#include <cmath>
 #include <array>
 #include <cstdint>
 #include <functional>
@@ -31,6 +32,7 @@ class Editor {
     }
     startVolume.assign(perLabel.size(), 0);
     movedVolume.assign(perLabel.size(), 0);
+    peeledVolume.assign(perLabel.size(), 0);
     for (size_t i = 0; i < tets.size(); ++i) startVolume[size_t(labels[i])] += volume(uint32_t(i));
   }
 
@@ -41,8 +43,9 @@ class Editor {
   std::vector<std::vector<uint32_t>> around;  // alive tets per vertex
   std::vector<int8_t> fixedState;             // -1 unknown, 0 free, 1 on a boundary/interface
   std::vector<size_t> perLabel;
-  /// Per material: volume at the start and the net volume interface moves added so far (mm^3).
-  std::vector<double> startVolume, movedVolume;
+  /// Per material: volume at the start, the net volume interface moves and relabelling added so
+  /// far, and the volume peeling removed (mm^3).
+  std::vector<double> startVolume, movedVolume, peeledVolume;
 
   double volume(uint32_t t) const {
     const auto& T = tets[t];
@@ -52,6 +55,19 @@ class Editor {
         w{d[0] - a[0], d[1] - a[1], d[2] - a[2]};
     return (u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0]) +
             u[2] * (v[0] * w[1] - v[1] * w[0])) / 6;
+  }
+
+  /// Smallest altitude of tet t (3 V / largest face area, mm): how far it is from flat.
+  double thickness(uint32_t t) const {
+    double area = 0;
+    for (int k = 0; k < 4; ++k) {
+      const auto f = face(t, k);
+      const Vec3 &A = pts[size_t(f[0])], &B = pts[size_t(f[1])], &C = pts[size_t(f[2])];
+      const Vec3 u{B[0] - A[0], B[1] - A[1], B[2] - A[2]}, w{C[0] - A[0], C[1] - A[1], C[2] - A[2]};
+      const Vec3 n{u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+      area = std::max(area, std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) / 2);
+    }
+    return area > 0 ? 3 * std::fabs(volume(t)) / area : 0;
   }
 
   double quality(uint32_t t) const {
@@ -92,8 +108,8 @@ class Editor {
     const int64_t s = across(t, f[0], f[1], f[2]);
     return s < 0 || labels[size_t(s)] != labels[t];
   }
-  /// A vertex is fixed when a constrained face holds it (cached: peeling and flips never free a
-  /// fixed vertex nor fix a free one, see the operations).
+  /// A vertex is fixed when a constrained face holds it (cached; kill and relabel forget the
+  /// state of the tet's vertices: peeling and relabelling may fix a free vertex).
   bool fixedVertex(int32_t v) {
     int8_t& st = fixedState[size_t(v)];
     if (st >= 0) return st == 1;
@@ -104,6 +120,7 @@ class Editor {
     return st == 1;
   }
   void relabel(uint32_t t, int32_t label) {
+    for (int32_t v : tets[t]) fixedState[size_t(v)] = -1;
     --perLabel[size_t(labels[t])];
     labels[t] = label;
     ++perLabel[size_t(label)];
@@ -112,6 +129,7 @@ class Editor {
     alive[t] = 0;
     --perLabel[size_t(labels[t])];
     for (int32_t v : tets[t]) {
+      fixedState[size_t(v)] = -1;
       auto& a = around[size_t(v)];
       a.erase(std::find(a.begin(), a.end(), t));
     }
@@ -148,6 +166,12 @@ bool removeEdge(Editor& m, uint32_t t, int32_t u, int32_t v, std::vector<uint32_
 /// applied.
 bool flipInterfaceEdge(Editor& m, uint32_t t, const OptimizeInterfaces& interfaces,
                        std::vector<uint32_t>& fresh);
+
+/// Relabels a flat tet (thickness at most `tolerance`) to the material that holds more of its
+/// faces than its own material does, when the new interface triangles stay within the facet
+/// distance and both materials' volume budgets allow; t goes to `fresh`. True when applied.
+bool relabelFlatTet(Editor& m, uint32_t t, const OptimizeInterfaces& interfaces, double tolerance,
+                    std::vector<uint32_t>& fresh);
 
 /// Moves an interface or triple-line vertex along its interface (InterfaceSmoothing.h); false
 /// when v is of another class or no move helps. `kind` gets 2 (interface) or 3 (triple line).
