@@ -147,6 +147,13 @@ const std::vector<Binding>& bindings() {
          "0 = never.", true},
         [](MeshingParameters& p, double x) { p.optimize.peelDistance = x; },
         [](const MeshingParameters& p) { return p.optimize.peelDistance; });
+    add({"optimize_vertex_insertion", "bool", "", "", 0, 1, "Vertex insertion",
+         "When no flip, move, peel or relabelling helps a tet below optimize_min_dihedral, a "
+         "vertex is inserted in it and its neighbours of the same material and placed where the "
+         "worst new tet is best (kept only when that beats the old worst). Interfaces and the outer "
+         "boundary do not change. Off: no vertex is added.", true},
+        [](MeshingParameters& p, double x) { p.optimize.insertVertices = x != 0; },
+        [](const MeshingParameters& p) { return p.optimize.insertVertices ? 1.0 : 0.0; });
     add({"min_fragment_voxels", "double", "voxels", "", 0, 1000, "Floating fragment removal",
          "After optimisation, pieces of the mesh connected to the rest by no face (floating "
          "elements: each is a rigid-body mode for a solver) with less volume than this many "

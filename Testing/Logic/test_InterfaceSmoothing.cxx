@@ -37,7 +37,7 @@ struct Optimized {
   RunContext ctx;
 };
 
-/// With keepPoints, nothing is peeled and no fragment removed, so that the optimised mesh keeps
+/// With keepPoints, nothing is peeled, no fragment removed and no vertex inserted, so that the optimised mesh keeps
 /// every point at its index (moves can be compared point by point).
 std::unique_ptr<Optimized> optimizeShape(const LabelVolume& shape, bool interfaces,
                                          bool keepPoints = false) {
@@ -48,6 +48,7 @@ std::unique_ptr<Optimized> optimizeShape(const LabelVolume& shape, bool interfac
   if (keepPoints) {
     p.optimize.peelDistance = 0;
     p.optimize.minFragmentVoxels = 0;
+    p.optimize.insertVertices = false;
   }
   o->run = std::make_unique<MeshingRun>(shape, p, o->ctx);
   o->run->runThrough(StageId::VolumeMesh);

@@ -284,6 +284,64 @@ bool peel(Editor& m, uint32_t t, double tolerance, std::vector<uint32_t>& fresh)
   return true;
 }
 
+/// Vertex insertion: a new vertex inside tet t replaces t and the tets of its material across its
+/// unconstrained faces (the cavity) by tets joining it to the cavity's faces, then moves to where
+/// the worst of them is best (smoothVertex). Kept only when that worst tet beats the cavity's
+/// worst and no more of them are below `target` than before; otherwise the cavity is restored (the unused point is dropped at the end). Constrained
+/// faces stay as they are, so interfaces and the outer boundary do not change.
+bool insertVertex(Editor& m, uint32_t t, double target, std::vector<uint32_t>& fresh) {
+  const int32_t label = m.labels[t];
+  std::vector<uint32_t> cavity{t};
+  for (int k = 0; k < 4; ++k) {
+    const auto f = m.face(t, k);
+    const int64_t s = m.across(t, f[0], f[1], f[2]);
+    if (s >= 0 && m.labels[size_t(s)] == label) cavity.push_back(uint32_t(s));
+  }
+  if (cavity.size() < 2) return false;
+  double oldMin = 1e300;
+  size_t oldBelow = 0;
+  for (uint32_t s : cavity) {
+    oldMin = std::min(oldMin, m.quality(s));
+    oldBelow += m.quality(s) < target;
+  }
+  // The cavity's faces: a face of a cavity tet whose other side is not in the cavity. Replacing
+  // the opposite vertex by the new one keeps the orientation.
+  std::vector<std::pair<std::array<int32_t, 4>, int>> shell;  // (tet with the slot to fill, slot)
+  for (uint32_t s : cavity)
+    for (int k = 0; k < 4; ++k) {
+      const auto f = m.face(s, k);
+      const int64_t o = m.across(s, f[0], f[1], f[2]);
+      if (o >= 0 && std::find(cavity.begin(), cavity.end(), uint32_t(o)) != cavity.end()) continue;
+      shell.push_back({m.tets[s], k});
+    }
+  Vec3 c{0, 0, 0};
+  for (int32_t w : m.tets[t])
+    for (int a = 0; a < 3; ++a) c[a] += m.pts[size_t(w)][a] / 4;
+  std::vector<std::array<int32_t, 4>> oldTets;
+  for (uint32_t s : cavity) oldTets.push_back(m.tets[s]);
+  const int32_t v = m.addPoint(c);
+  for (uint32_t s : cavity) m.kill(s);
+  std::vector<uint32_t> made;
+  for (auto [T, k] : shell) {
+    T[size_t(k)] = v;
+    made.push_back(m.add(T, label));
+  }
+  smoothVertex(m, v, nullptr);
+  double newMin = 1e300;
+  size_t newBelow = 0;
+  for (uint32_t s : m.around[size_t(v)]) {
+    newMin = std::min(newMin, m.quality(s));
+    newBelow += m.quality(s) < target;
+  }
+  if (!(newMin > oldMin + kEps) || newBelow > oldBelow) {
+    for (uint32_t s : made) m.kill(s);
+    for (const auto& T : oldTets) fresh.push_back(m.add(T, label));
+    return false;
+  }
+  fresh.insert(fresh.end(), made.begin(), made.end());
+  return true;
+}
+
 /// Smooths vertex v by its class: interior vertices freely, interface and triple-line vertices
 /// along their interface (when `interfaces` has one and the parameters allow), vertices of a flat
 /// outer-boundary patch within its plane; counts the move in `r`. True when v moved.
@@ -360,8 +418,16 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
   std::vector<uint32_t> queue, fresh;
   for (uint32_t t = 0; t < tets.size(); ++t)
     if (m.quality(t) < params.targetMinDihedral) queue.push_back(t);
-  for (int pass = 0; pass < params.passes && !queue.empty(); ++pass) {
+  // Rounds: up to `passes` regular ones (until nothing changes), then, with insertVertices, one
+  // round that may also insert vertices and a last regular one over what it changed. Insertion
+  // comes last so that it only works where nothing else helps.
+  enum class Round { Regular, Inserting, Final, Done };
+  Round round = Round::Regular;
+  int regularLeft = params.passes;
+  const int totalRounds = params.passes + (params.insertVertices ? 2 : 0);
+  for (int pass = 0; round != Round::Done && regularLeft > 0 && !queue.empty(); ++pass) {
     ++r.passes;
+    const bool inserting = round == Round::Inserting;
     std::vector<std::pair<double, uint32_t>> order;
     for (uint32_t t : queue)
       if (m.alive[t]) order.emplace_back(m.quality(t), t);
@@ -370,7 +436,7 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
     size_t changes = 0, done = 0;
     for (const auto& [q0, t] : order) {
       if ((++done & 0xFF) == 0) {
-        ctx.progress((double(pass) + double(done) / double(order.size())) / params.passes);
+        ctx.progress(std::min(1.0, (double(pass) + double(done) / double(order.size())) / totalRounds));
       }
       if (!m.alive[t] || m.quality(t) >= params.targetMinDihedral) continue;
       fresh.clear();
@@ -411,6 +477,10 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
           }
         if (m.alive[t] && m.quality(t) < params.targetMinDihedral && changed) queue.push_back(t);
       }
+      if (!changed && inserting && insertVertex(m, t, params.targetMinDihedral, fresh)) {
+        ++r.insertedVertices;
+        changed = true;
+      }
       if (changed) ++changes;
       for (uint32_t s : fresh)
         if (m.alive[s] && m.quality(s) < params.targetMinDihedral) queue.push_back(s);
@@ -418,7 +488,19 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
     ctx.checkCancel();
     std::sort(queue.begin(), queue.end());
     queue.erase(std::unique(queue.begin(), queue.end()), queue.end());
-    if (changes == 0) break;
+    if (round == Round::Regular) {
+      if (--regularLeft == 0 || changes == 0) {
+        round = params.insertVertices ? Round::Inserting : Round::Done;
+        regularLeft = 1;
+        if (round == Round::Inserting) {  // every tet still below the target
+          queue.clear();
+          for (uint32_t t = 0; t < tets.size(); ++t)
+            if (m.alive[t] && m.quality(t) < params.targetMinDihedral) queue.push_back(t);
+        }
+      }
+    } else {
+      round = round == Round::Inserting ? Round::Final : Round::Done;
+    }
   }
   // Compact: alive tets, used points (order kept).
   std::vector<std::array<int32_t, 4>> keptTets;
@@ -558,6 +640,7 @@ ReportCounts reportCounts(const OptimizeResult& r) {
           {"optimize_interface_flips", double(r.interfaceFlips)},
           {"optimize_peeled_tets", double(r.peeledTets)},
           {"optimize_relabelled_tets", double(r.relabelledTets)},
+          {"optimize_inserted_vertices", double(r.insertedVertices)},
           {"optimize_fragments_removed", double(r.fragments)},
           {"optimize_fragment_tets", double(r.fragmentTets)},
           {"optimize_fragment_volume_mm3", r.fragmentVolume},

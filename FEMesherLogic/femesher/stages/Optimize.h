@@ -38,6 +38,9 @@
 ///    (its other faces inside its own) joins that material when the edge it leaves inside it can
 ///    then be removed (the edge removal above): the two interface triangles on that edge become
 ///    the tet's two other faces.
+///  - vertex insertion (insertVertices), when nothing above helps a tet: a new vertex replaces the
+///    tet and its neighbours of the same material across unconstrained faces by a star of tets,
+///    and moves to where the star's worst tet is best; kept only when that beats the old worst.
 /// Last, floating fragments (minFragmentVoxels) are removed.
 /// Interface triangles change only by these moves and flips, which relabel or re-triangulate
 /// whole tets: every interface triangle stays shared by the tets of both sides,
@@ -77,6 +80,9 @@ struct OptimizeParameters {
   double voxelVolume = 1.0;
   /// Move interior vertices.
   bool smooth = true;
+  /// When nothing else helps a tet: insert a vertex in it and its same-material neighbours (the
+  /// cavity), placed where the worst new tet is best; kept only when that beats the cavity.
+  bool insertVertices = true;
   /// Move interface and triple-line vertices along their interfaces (needs OptimizeInterfaces).
   bool moveInterfaces = true;
   /// Degrees: after the stage, tets below this are reported and the run's status becomes
@@ -118,6 +124,7 @@ struct OptimizeResult {
   size_t interfaceFlips = 0;      ///< interface edge flips
   size_t peeledTets = 0;        ///< flat boundary tets removed
   size_t relabelledTets = 0;    ///< flat interface tets given to the neighbouring material
+  size_t insertedVertices = 0;  ///< vertices inserted (see insertVertices)
   size_t fragments = 0;         ///< floating fragments removed (see minFragmentVoxels)
   size_t fragmentTets = 0;      ///< their tets
   double fragmentVolume = 0;    ///< their volume, mm^3
@@ -128,6 +135,7 @@ struct OptimizeResult {
 /// optimize_min_dihedral_before/after, optimize_edge_removals, optimize_face_flips,
 /// optimize_smoothed_vertices, optimize_interface_vertex_moves, optimize_triple_line_vertex_moves,
 /// optimize_interface_flips, optimize_peeled_tets, optimize_relabelled_tets,
+/// optimize_inserted_vertices,
 /// optimize_fragments_removed, optimize_fragment_tets, optimize_fragment_volume_mm3, optimize_passes.
 ReportCounts reportCounts(const OptimizeResult& result);
 

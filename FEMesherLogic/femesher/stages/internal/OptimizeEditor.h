@@ -134,6 +134,13 @@ class Editor {
       a.erase(std::find(a.begin(), a.end(), t));
     }
   }
+  /// A new vertex (no tet yet); invalidates references into pts.
+  int32_t addPoint(const Vec3& p) {
+    pts.push_back(p);
+    around.emplace_back();
+    fixedState.push_back(-1);
+    return int32_t(pts.size() - 1);
+  }
   uint32_t add(const std::array<int32_t, 4>& T, int32_t label) {
     const uint32_t id = uint32_t(tets.size());
     tets.push_back(T);
