@@ -141,7 +141,7 @@ const std::vector<Binding>& bindings() {
         [](const MeshingParameters& p) { return p.optimize.targetMinDihedral; });
     add({"sliver_peel_distance", "double", "voxels", "", 0, 1, "Boundary sliver peeling",
          "A flat tet with a face on the mesh's outer boundary (background or volume box) is "
-         "removed when it is thinner than this (voxels of the smallest spacing; at most 0.2 % of "
+         "removed when it is thinner than this (voxels of the smallest spacing; at most 0.4 % of "
          "a material's volume in all): the outer surface moves by at most that much. A flat tet "
          "between materials that is this thin joins the material holding most of its faces. "
          "0 = never.", true},

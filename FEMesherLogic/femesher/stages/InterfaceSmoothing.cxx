@@ -280,13 +280,18 @@ bool relabelFlatTet(Editor& m, uint32_t t, const OptimizeInterfaces& in, double 
     // constrained faces (so it cannot be undone and redone). As many: only when an edge of t
     // can then be removed inside `other` (an interface flip of a more general kind).
     if (-negFaces < ownFaces) break;
-    bool near = true;  // every face that becomes an interface stays within the facet distance
+    // Every face that becomes an interface stays within the facet distance of its smooth
+    // interface. Where that cannot be checked (the projection fails: near a junction of more
+    // materials, the pair is not the leading one), a tet thinner than a tenth of the facet
+    // distance may still go: its faces lie that close to the interface faces they replace.
+    const bool sliver = m.thickness(t) <= 0.1 * in.facetDistance;
+    bool near = true;
     for (int k = 0; k < 4 && near; ++k) {
       const int l = m.labels[size_t(nb[k])];
       if (l == other) continue;
       const InterfaceFace f{m.face(t, k), std::min(l, other), std::max(l, other), {0, 0, 0}};
       const double d = centroidDistance(m, in, f);
-      near = d >= 0 && d <= in.facetDistance;
+      near = d >= 0 ? d <= in.facetDistance : sliver;
     }
     if (!near ||
         std::fabs(m.movedVolume[size_t(own)] - v) > kVolumeBudget * m.startVolume[size_t(own)] ||

@@ -260,7 +260,7 @@ bool flatPatch(const Editor& m, int32_t v, double tolerance, Vec3& normal) {
 }
 
 /// Share of a material's volume that peeling may remove in all.
-constexpr double kPeelBudget = 2e-3;
+constexpr double kPeelBudget = 4e-3;
 
 /// Removes a flat tet with a face on the outer boundary (see Optimize.h); the tets across its
 /// other faces (now on the outer boundary) go to `fresh`.

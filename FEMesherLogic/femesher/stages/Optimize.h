@@ -19,7 +19,7 @@
 ///    within that plane the same way;
 ///  - peeling: a flat tet with a face on the mesh's outer boundary (faces with no other tet: the
 ///    interface with the background or the volume's box) is removed when its thickness (smallest
-///    altitude) is below `peelDistance` (never a material's last tet, at most 0.2 % of a
+///    altitude) is below `peelDistance` (never a material's last tet, at most 0.4 % of a
 ///    material's volume in all). That flips two nearly coplanar boundary triangles, drops a flat
 ///    cap, fin or isolated tet, and moves the outer boundary by at most `peelDistance`.
 ///  - smoothing of interface vertices (given the smooth interfaces, OptimizeInterfaces, see
