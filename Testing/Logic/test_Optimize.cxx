@@ -218,6 +218,38 @@ TEST(Optimize, RelabelsAFlatTetInsideAnotherMaterialAndThenRemovesIt) {
   }
 }
 
+TEST(Optimize, RelabelsASliverWhereTheNewInterfaceCannotBeCheckedOnlyWhenVeryThin) {
+  // As above, but the corner tet is material 3: joining material 1 turns the cap's base into an
+  // interface of 1 and 3, which the projection here cannot place (it fails). The cap (0.01 thick)
+  // may still go when it is thinner than a tenth of the facet distance, not otherwise.
+  for (const double facetDistance : {1.0, 0.05}) {
+    CornerWithCap m(0.01, true);
+    m.labels = {3, 2, 2};
+    m.addBulk(-100, 1);
+    m.addBulk(300, 3);
+    const double s = 1.0 / 3.0, n = 1.0 / std::sqrt(3.0);
+    m.p.push_back({s + n, s + n, s + n});
+    const int32_t apex = int32_t(m.p.size() - 1);
+    for (const auto& e : {std::array<int32_t, 2>{1, 2}, std::array<int32_t, 2>{2, 3},
+                          std::array<int32_t, 2>{3, 1}}) {
+      std::array<int32_t, 4> T{e[0], e[1], 4, apex};
+      if (tetMinDihedral(m.p[T[0]], m.p[T[1]], m.p[T[2]], m.p[T[3]]) < 0) std::swap(T[0], T[1]);
+      m.t.push_back(T);
+      m.labels.push_back(1);
+    }
+    OptimizeInterfaces in;
+    in.projectOntoInterface = [](int, int, Vec3&) { return false; };
+    in.facetDistance = facetDistance;
+    RunContext ctx;
+    OptimizeParameters op;
+    op.targetMinDihedral = 20;
+    op.peelDistance = 0.05;
+    op.minFragmentVoxels = 0;
+    const auto r = optimizeTetMesh(m.p, m.t, m.labels, op, in, ctx);
+    EXPECT_EQ(r.relabelledTets, facetDistance > 0.5 ? 1u : 0u) << "facet distance " << facetDistance;
+  }
+}
+
 TEST(Optimize, PhantomMeshKeepsItsMaterialInterfacesAndLosesSlivers) {
   const LabelVolume v = makePhantom();
   MeshingParameters p;
