@@ -284,18 +284,27 @@ bool peel(Editor& m, uint32_t t, double tolerance, std::vector<uint32_t>& fresh)
   return true;
 }
 
-/// Vertex insertion: a new vertex inside tet t replaces t and the tets of its material across its
-/// unconstrained faces (the cavity) by tets joining it to the cavity's faces, then moves to where
-/// the worst of them is best (smoothVertex). Kept only when that worst tet beats the cavity's
-/// worst and no more of them are below `target` than before; otherwise the cavity is restored (the unused point is dropped at the end). Constrained
-/// faces stay as they are, so interfaces and the outer boundary do not change.
-bool insertVertex(Editor& m, uint32_t t, double target, std::vector<uint32_t>& fresh) {
+/// Vertex insertion: a new vertex inside tet t replaces t and the tets of its material across
+/// unconstrained faces, `rings` steps deep (the cavity), by tets joining it to the cavity's faces,
+/// then moves to where the worst of them is best (smoothVertex). Kept only when that worst tet
+/// beats the cavity's worst and no more of them are below `target` than before; otherwise the
+/// cavity's tets come back (the unused point is dropped at the end). Constrained faces stay as
+/// they are, so interfaces and the outer boundary do not change.
+bool insertVertex(Editor& m, uint32_t t, double target, int rings, std::vector<uint32_t>& fresh) {
   const int32_t label = m.labels[t];
   std::vector<uint32_t> cavity{t};
-  for (int k = 0; k < 4; ++k) {
-    const auto f = m.face(t, k);
-    const int64_t s = m.across(t, f[0], f[1], f[2]);
-    if (s >= 0 && m.labels[size_t(s)] == label) cavity.push_back(uint32_t(s));
+  size_t from = 0;
+  for (int ring = 0; ring < rings; ++ring) {
+    const size_t to = cavity.size();
+    for (size_t i = from; i < to; ++i)
+      for (int k = 0; k < 4; ++k) {
+        const auto f = m.face(cavity[i], k);
+        const int64_t s = m.across(cavity[i], f[0], f[1], f[2]);
+        if (s >= 0 && m.labels[size_t(s)] == label &&
+            std::find(cavity.begin(), cavity.end(), uint32_t(s)) == cavity.end())
+          cavity.push_back(uint32_t(s));
+      }
+    from = to;
   }
   if (cavity.size() < 2) return false;
   double oldMin = 1e300;
@@ -317,8 +326,6 @@ bool insertVertex(Editor& m, uint32_t t, double target, std::vector<uint32_t>& f
   Vec3 c{0, 0, 0};
   for (int32_t w : m.tets[t])
     for (int a = 0; a < 3; ++a) c[a] += m.pts[size_t(w)][a] / 4;
-  std::vector<std::array<int32_t, 4>> oldTets;
-  for (uint32_t s : cavity) oldTets.push_back(m.tets[s]);
   const int32_t v = m.addPoint(c);
   for (uint32_t s : cavity) m.kill(s);
   std::vector<uint32_t> made;
@@ -335,7 +342,7 @@ bool insertVertex(Editor& m, uint32_t t, double target, std::vector<uint32_t>& f
   }
   if (!(newMin > oldMin + kEps) || newBelow > oldBelow) {
     for (uint32_t s : made) m.kill(s);
-    for (const auto& T : oldTets) fresh.push_back(m.add(T, label));
+    for (uint32_t s : cavity) m.revive(s);
     return false;
   }
   fresh.insert(fresh.end(), made.begin(), made.end());
@@ -477,7 +484,9 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
           }
         if (m.alive[t] && m.quality(t) < params.targetMinDihedral && changed) queue.push_back(t);
       }
-      if (!changed && inserting && insertVertex(m, t, params.targetMinDihedral, fresh)) {
+      if (!changed && inserting &&
+          (insertVertex(m, t, params.targetMinDihedral, 1, fresh) ||
+           insertVertex(m, t, params.targetMinDihedral, 2, fresh))) {
         ++r.insertedVertices;
         changed = true;
       }

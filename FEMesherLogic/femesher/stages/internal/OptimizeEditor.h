@@ -134,6 +134,15 @@ class Editor {
       a.erase(std::find(a.begin(), a.end(), t));
     }
   }
+  /// Brings back a killed tet (its vertices and label are still in place).
+  void revive(uint32_t t) {
+    alive[t] = 1;
+    ++perLabel[size_t(labels[t])];
+    for (int32_t v : tets[t]) {
+      fixedState[size_t(v)] = -1;
+      around[size_t(v)].push_back(t);
+    }
+  }
   /// A new vertex (no tet yet); invalidates references into pts.
   int32_t addPoint(const Vec3& p) {
     pts.push_back(p);
