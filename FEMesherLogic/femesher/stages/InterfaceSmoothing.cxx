@@ -277,9 +277,9 @@ bool relabelFlatTet(Editor& m, uint32_t t, const OptimizeInterfaces& in, double 
   const double v = m.volume(t);
   for (const auto& [negFaces, other] : candidates) {
     // More faces on `other` than on its own material: the relabelling lowers the number of
-    // constrained faces (so it cannot be undone and redone). As many: only when an edge of t
-    // can then be removed inside `other` (an interface flip of a more general kind).
-    if (-negFaces < ownFaces) break;
+    // constrained faces (so it cannot be undone and redone). As many or fewer: only when an edge
+    // of t can then be removed, or a face flipped, inside `other` (an interface flip of a more
+    // general kind, which raises the worst angle, so it cannot be undone either).
     // Every face that becomes an interface stays within the facet distance of its smooth
     // interface. Where that cannot be checked (the projection fails: near a junction of more
     // materials, the pair is not the leading one), a tet thinner than a tenth of the facet
@@ -304,7 +304,9 @@ bool relabelFlatTet(Editor& m, uint32_t t, const OptimizeInterfaces& in, double 
     } else {
       const auto T = m.tets[t];
       for (int i = 0; i < 4 && !done; ++i)
-        for (int j = i + 1; j < 4 && !done; ++j) done = removeEdge(m, t, T[size_t(i)], T[size_t(j)], fresh);
+        for (int j = i + 1; j < 4 && !done; ++j)
+          done = removeEdge(m, t, T[size_t(i)], T[size_t(j)], fresh);
+      for (int k = 0; k < 4 && !done; ++k) done = flipFace(m, t, k, fresh);
     }
     if (!done) {
       m.relabel(t, own);

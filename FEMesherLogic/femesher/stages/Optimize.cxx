@@ -188,13 +188,6 @@ bool removeEdge(Editor& m, uint32_t t, int32_t u, int32_t v, std::vector<uint32_
   return true;
 }
 
-}  // namespace optimize_detail
-
-namespace {
-
-using namespace optimize_detail;
-constexpr double kRadToDeg = 57.29577951308232;
-
 /// 2-to-3 flip across face k of t (the face opposite T[k]) when both tets are of one material.
 bool flipFace(Editor& m, uint32_t t, int k, std::vector<uint32_t>& fresh) {
   auto f = m.face(t, k);
@@ -223,6 +216,13 @@ bool flipFace(Editor& m, uint32_t t, int k, std::vector<uint32_t>& fresh) {
   for (const auto& T : nt) fresh.push_back(m.add(T, label));
   return true;
 }
+
+}  // namespace optimize_detail
+
+namespace {
+
+using namespace optimize_detail;
+constexpr double kRadToDeg = 57.29577951308232;
 
 /// For a vertex on constrained faces: true when all of them are outer-boundary faces of one
 /// material (no interface between two materials holds v) and their vertices lie within

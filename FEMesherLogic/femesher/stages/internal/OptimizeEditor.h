@@ -178,6 +178,10 @@ bool smoothVertex(Editor& m, int32_t v, const MoveConstraint* constraint);
 /// material, when that raises the ring's worst tet; the new tets go to `fresh`. True when applied.
 bool removeEdge(Editor& m, uint32_t t, int32_t u, int32_t v, std::vector<uint32_t>& fresh);
 
+/// 2-to-3 flip across face k of t (the face opposite T[k]) when both tets are of one material
+/// and that raises their worst angle; the new tets go to `fresh`. True when applied.
+bool flipFace(Editor& m, uint32_t t, int k, std::vector<uint32_t>& fresh);
+
 /// Interface edge flip (InterfaceSmoothing.h) at tet t; the new tets go to `fresh`. True when
 /// applied.
 bool flipInterfaceEdge(Editor& m, uint32_t t, const OptimizeInterfaces& interfaces,
