@@ -82,6 +82,20 @@ struct CornerWithCap {
     if (tetMinDihedral(p[1], p[2], p[3], p[4]) < 0) std::swap(t[1][0], t[1][1]);
     if (bulk) addBulk(100, 1);
   }
+  /// Three tets of `label` over the cap's three outer faces (their apex 1 out along the normal):
+  /// all four of the cap's faces then have a tet on the other side.
+  void closeIn(int32_t label) {
+    const double s = 1.0 / 3.0, n = 1.0 / std::sqrt(3.0);
+    p.push_back({s + n, s + n, s + n});
+    const int32_t apex = int32_t(p.size() - 1);
+    for (const auto& e : {std::array<int32_t, 2>{1, 2}, std::array<int32_t, 2>{2, 3},
+                          std::array<int32_t, 2>{3, 1}}) {
+      std::array<int32_t, 4> T{e[0], e[1], 4, apex};
+      if (tetMinDihedral(p[T[0]], p[T[1]], p[T[2]], p[T[3]]) < 0) std::swap(T[0], T[1]);
+      t.push_back(T);
+      labels.push_back(label);
+    }
+  }
   /// A regular tet of edge 40 * sqrt(2) centred at (x, x, x), its own piece.
   void addBulk(double x, int32_t label) {
     const double L = 20;
@@ -168,23 +182,13 @@ TEST(Optimize, RemovesFloatingFragmentsButNeverAMaterialsLastPiece) {
 }
 
 TEST(Optimize, RelabelsAFlatTetInsideAnotherMaterialAndThenRemovesIt) {
-  // The cap (material 2) sits on the corner tet's slanted face; three tets of material 1 over its
-  // three outer faces (apex far out along the normal) close it in: all four of its faces are on
-  // material 1. A far bulk tet of material 2 keeps that material alive.
+  // The cap (material 2) sits on the corner tet's slanted face; three tets of material 1 close it
+  // in: all four of its faces are on material 1. A far bulk tet of material 2 keeps it alive.
   auto closedIn = [] {
     CornerWithCap m(0.01, true);
     m.labels = {1, 2, 2};
     m.addBulk(-100, 1);  // both materials large: the relabelling is within their volume budget
-    const double s = 1.0 / 3.0, n = 1.0 / std::sqrt(3.0);
-    m.p.push_back({s + n, s + n, s + n});
-    const int32_t apex = int32_t(m.p.size() - 1);
-    for (const auto& e : {std::array<int32_t, 2>{1, 2}, std::array<int32_t, 2>{2, 3},
-                          std::array<int32_t, 2>{3, 1}}) {
-      std::array<int32_t, 4> T{e[0], e[1], 4, apex};
-      if (tetMinDihedral(m.p[T[0]], m.p[T[1]], m.p[T[2]], m.p[T[3]]) < 0) std::swap(T[0], T[1]);
-      m.t.push_back(T);
-      m.labels.push_back(1);
-    }
+    m.closeIn(1);
     return m;
   };
   OptimizeInterfaces in;
@@ -227,16 +231,7 @@ TEST(Optimize, RelabelsASliverWhereTheNewInterfaceCannotBeCheckedOnlyWhenVeryThi
     m.labels = {3, 2, 2};
     m.addBulk(-100, 1);
     m.addBulk(300, 3);
-    const double s = 1.0 / 3.0, n = 1.0 / std::sqrt(3.0);
-    m.p.push_back({s + n, s + n, s + n});
-    const int32_t apex = int32_t(m.p.size() - 1);
-    for (const auto& e : {std::array<int32_t, 2>{1, 2}, std::array<int32_t, 2>{2, 3},
-                          std::array<int32_t, 2>{3, 1}}) {
-      std::array<int32_t, 4> T{e[0], e[1], 4, apex};
-      if (tetMinDihedral(m.p[T[0]], m.p[T[1]], m.p[T[2]], m.p[T[3]]) < 0) std::swap(T[0], T[1]);
-      m.t.push_back(T);
-      m.labels.push_back(1);
-    }
+    m.closeIn(1);
     OptimizeInterfaces in;
     in.projectOntoInterface = [](int, int, Vec3&) { return false; };
     in.facetDistance = facetDistance;
