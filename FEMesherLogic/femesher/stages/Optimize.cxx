@@ -264,17 +264,21 @@ constexpr double kPeelBudget = 4e-3;
 
 /// Removes a flat tet with a face on the outer boundary (see Optimize.h); the tets across its
 /// other faces (now on the outer boundary) go to `fresh`.
-bool peel(Editor& m, uint32_t t, double tolerance, std::vector<uint32_t>& fresh) {
+bool peel(Editor& m, uint32_t t, double tolerance, double capTolerance,
+          std::vector<uint32_t>& fresh) {
   const size_t label = size_t(m.labels[t]);
   if (tolerance <= 0 || m.perLabel[label] <= 1) return false;
   int64_t nb[4];
-  bool outer = false;
+  int outer = 0;
   for (int k = 0; k < 4; ++k) {
     const auto f = m.face(t, k);
     nb[k] = m.across(t, f[0], f[1], f[2]);
-    outer |= nb[k] < 0;
+    outer += nb[k] < 0;
   }
-  if (!outer || !(m.thickness(t) <= tolerance)) return false;
+  // A cap (three or four outer faces) may be as thick as capTolerance: removing it replaces
+  // its outer faces by the one below them.
+  if (outer == 0 || !(m.thickness(t) <= (outer >= 3 ? std::max(tolerance, capTolerance) : tolerance)))
+    return false;
   const double v = m.volume(t);
   if (m.peeledVolume[label] + v > kPeelBudget * m.startVolume[label]) return false;
   m.peeledVolume[label] += v;
@@ -448,7 +452,8 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
       if (!m.alive[t] || m.quality(t) >= params.targetMinDihedral) continue;
       fresh.clear();
       bool changed = false;
-      if (peel(m, t, params.peelDistance * params.voxelSize, fresh)) {
+      if (peel(m, t, params.peelDistance * params.voxelSize,
+               interfaces.enabled() ? interfaces.facetDistance : 0.0, fresh)) {
         ++r.peeledTets;
         changed = true;
       }

@@ -21,7 +21,9 @@
 ///    interface with the background or the volume's box) is removed when its thickness (smallest
 ///    altitude) is below `peelDistance` (never a material's last tet, at most 0.4 % of a
 ///    material's volume in all). That flips two nearly coplanar boundary triangles, drops a flat
-///    cap, fin or isolated tet, and moves the outer boundary by at most `peelDistance`.
+///    cap, fin or isolated tet, and moves the outer boundary by at most `peelDistance`. A cap
+///    (three or four outer faces) may be as thick as the interfaces' facet distance (when given):
+///    its outer faces give way to the one below them.
 ///  - smoothing of interface vertices (given the smooth interfaces, OptimizeInterfaces, see
 ///    InterfaceSmoothing.h): a vertex with exactly two materials around (outside the mesh, away
 ///    from the volume's box, counting as background 0) moves in the tangent plane of its
