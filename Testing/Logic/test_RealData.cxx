@@ -33,13 +33,21 @@ struct Case {
   std::string file;
   int64_t minVoxels;
   double minDice = 0.85;  ///< voxel-centre agreement, for labels of >= 1,000 voxels
+  /// Regression floor for the worst tet's smallest dihedral angle (degrees; issue 12). Measured
+  /// 2026-11-24 on the written meshes (Testing/Benchmarks/judge_real_volumes.py), floors a little
+  /// below: knee 5.39, phantom 9.92, mickey 8.83, spheres_argmax 14.9, example_seg 5.35,
+  /// frogtissue 3.85, example_seg_dicom 3.3, digimouse 2.15, colin27 0.87.
+  double minWorstAngle = 0;
 };
+
+/// Issue 12: fewer than 0.5 % of the tets below 15 degrees on every real volume.
+constexpr double kMaxShareBelow15 = 0.005;
 
 std::ostream& operator<<(std::ostream& os, const Case& c) { return os << c.file; }
 
 void checkVolume(const LabelVolume& v, const MeshingParameters& p, const std::string& name,
                  double minDice = 0.85, PipelineResult* out = nullptr,
-                 double minVolumeDice = kMinVolumeDice) {
+                 double minVolumeDice = kMinVolumeDice, double minWorstAngle = 0) {
   RunContext ctx;
   auto r = runPipeline(v, p, ctx);
   ASSERT_TRUE(r.isOk()) << name << ": " << r.status().message();
@@ -79,7 +87,14 @@ void checkVolume(const LabelVolume& v, const MeshingParameters& p, const std::st
     EXPECT_LE(r->fidelity.meshToLabels.p99, 1.0) << name;
   }
   size_t below10 = 0;
-  if (const auto* md = r->quality.all.find("min_dihedral")) below10 = md->badCount;
+  const auto* md = r->quality.all.find("min_dihedral");
+  ASSERT_NE(md, nullptr);
+  below10 = md->badCount;
+  if (minWorstAngle > 0) {  // the default-parameter runs with a quality floor
+    EXPECT_GE(md->min, minWorstAngle) << name << ": the worst tet is flatter than before";
+    EXPECT_LT(double(r->quality.minDihedralBelow15), kMaxShareBelow15 * double(m.tets.size()))
+        << name << ": too many tets below 15 degrees";
+  }
   double seconds = r->totalSeconds;
   std::printf("[real-data] %s: %zu tets, %zu vertices, %.1f s, min dihedral < 10deg: %.2f%%, "
               "Dice%s%s\n",
@@ -104,17 +119,19 @@ TEST_P(RealData, MeshesWithAllLabelsConformalAndFaithful) {
   ASSERT_TRUE(v.isOk()) << v.status().message();
   MeshingParameters p;
   p.preprocess.minVoxels = c.minVoxels;
-  checkVolume(v.value(), p, c.file, c.minDice);
+  checkVolume(v.value(), p, c.file, c.minDice, nullptr, kMinVolumeDice, c.minWorstAngle);
 }
 
 INSTANTIATE_TEST_SUITE_P(
     SharedData, RealData,
     ::testing::Values(Case{"420.nrrd", 1}, Case{"40420.nrrd", 1}, Case{"12323.nrrd", 1},
-                      Case{"20012323.nrrd", 1}, Case{"mickey.nrrd", 10, 0.90},
-                      Case{"spheres_argmax.nrrd", 10, 0.90}, Case{"colin27_v3.nrrd", 10, 0.90},
-                      Case{"digimouse.nrrd", 10}, Case{"frogtissue.nrrd", 10},
-                      Case{"example_seg.nii.gz", 10}, Case{"example_seg_dicom.nii.gz", 10},
-                      Case{"9135902_00m_WB01.nii.gz", 10, 0.90}),
+                      Case{"20012323.nrrd", 1}, Case{"mickey.nrrd", 10, 0.90, 8},
+                      Case{"spheres_argmax.nrrd", 10, 0.90, 14},
+                      Case{"colin27_v3.nrrd", 10, 0.90, 0.8}, Case{"digimouse.nrrd", 10, 0.85, 2},
+                      Case{"frogtissue.nrrd", 10, 0.85, 3.5},
+                      Case{"example_seg.nii.gz", 10, 0.85, 5},
+                      Case{"example_seg_dicom.nii.gz", 10, 0.85, 3},
+                      Case{"9135902_00m_WB01.nii.gz", 10, 0.90, 5}),
     [](const ::testing::TestParamInfo<Case>& info) {
       std::string n = info.param.file;
       for (auto& ch : n)
@@ -124,7 +141,7 @@ INSTANTIATE_TEST_SUITE_P(
 
 TEST(RealDataPhantom, BuiltInPhantomMeshes) {
   const LabelVolume v = makePhantom();
-  checkVolume(v, MeshingParameters{}, "phantom", 0.90);
+  checkVolume(v, MeshingParameters{}, "phantom", 0.90, nullptr, kMinVolumeDice, 9);
 }
 
 // The local Delaunay surface mesher (surface_mesher=ldt) on real data: no hole left, the LDT
