@@ -69,31 +69,6 @@ size_t peelBoundaryDegenerates(const std::vector<Tet>& tets, const std::vector<s
   return count;
 }
 
-/// Erases the removed tets and the points no tet uses any more (order kept).
-void compact(std::vector<Vec3>& points, std::vector<Tet>& tets, std::vector<int32_t>& labels,
-             const std::vector<char>& removed) {
-  size_t n = 0;
-  for (size_t t = 0; t < tets.size(); ++t)
-    if (!removed[t]) {
-      tets[n] = tets[t];
-      labels[n++] = labels[t];
-    }
-  tets.resize(n);
-  labels.resize(n);
-  std::vector<int32_t> newIndex(points.size(), -1);
-  for (const Tet& t : tets)
-    for (int32_t v : t) newIndex[size_t(v)] = 0;
-  size_t m = 0;
-  for (size_t i = 0; i < points.size(); ++i)
-    if (newIndex[i] == 0) {
-      newIndex[i] = int32_t(m);
-      points[m++] = points[i];
-    }
-  points.resize(m);
-  for (Tet& t : tets)
-    for (int32_t& v : t) v = newIndex[size_t(v)];
-}
-
 std::string formatPoint(const Vec3& p) {
   char buf[96];
   std::snprintf(buf, sizeof buf, "(%.2f, %.2f, %.2f)", p[0], p[1], p[2]);
@@ -164,7 +139,7 @@ MeshCheckResult checkTetMesh(std::vector<Vec3>& points, std::vector<Tet>& tets,
     for (size_t t : degenerate)
       if (!removed[t]) left.push_back(t);
     if (!left.empty()) failDegenerate(points, tets, left, rel, frame);
-    compact(points, tets, labels, removed);
+    eraseTets(points, tets, labels, removed);
   }
   std::vector<double> angle(tets.size());
   for (size_t t = 0; t < tets.size(); ++t) {

@@ -384,6 +384,30 @@ bool moveVertex(Editor& m, int32_t v, const OptimizeParameters& params,
 
 }  // namespace
 
+void eraseTets(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
+               std::vector<int32_t>& labels, const std::vector<char>& erase) {
+  size_t n = 0;
+  for (size_t t = 0; t < tets.size(); ++t)
+    if (!erase[t]) {
+      tets[n] = tets[t];
+      labels[n++] = labels[t];
+    }
+  tets.resize(n);
+  labels.resize(n);
+  std::vector<int32_t> newIndex(points.size(), -1);
+  for (const auto& T : tets)
+    for (int32_t v : T) newIndex[size_t(v)] = 0;
+  size_t m = 0;
+  for (size_t i = 0; i < points.size(); ++i)
+    if (newIndex[i] == 0) {
+      newIndex[i] = int32_t(m);
+      points[m++] = points[i];
+    }
+  points.resize(m);
+  for (auto& T : tets)
+    for (int32_t& v : T) v = newIndex[size_t(v)];
+}
+
 double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
   const Vec3 ab = sub(b, a), ac = sub(c, a), ad = sub(d, a);
   const double vol = dot(cross(ab, ac), ad);
@@ -405,22 +429,6 @@ double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d
 }
 
 namespace {
-
-/// Drops the points no tet uses (indices renumbered, order kept).
-void dropUnusedPoints(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets) {
-  std::vector<int32_t> newId(points.size(), -1);
-  for (const auto& T : tets)
-    for (int32_t v : T) newId[size_t(v)] = 0;
-  std::vector<Vec3> keptPoints;
-  for (size_t i = 0; i < points.size(); ++i)
-    if (newId[i] == 0) {
-      newId[i] = int32_t(keptPoints.size());
-      keptPoints.push_back(points[i]);
-    }
-  for (auto& T : tets)
-    for (auto& v : T) v = newId[size_t(v)];
-  points.swap(keptPoints);
-}
 
 void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
              std::vector<int32_t>& labels, const OptimizeParameters& params,
@@ -517,21 +525,14 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
     }
   }
   // Compact: alive tets, used points (order kept).
-  std::vector<std::array<int32_t, 4>> keptTets;
-  std::vector<int32_t> keptLabels;
-  for (size_t t = 0; t < tets.size(); ++t) {
-    if (!m.alive[t]) continue;
-    keptTets.push_back(tets[t]);
-    keptLabels.push_back(labels[t]);
-  }
-  tets.swap(keptTets);
-  labels.swap(keptLabels);
-  dropUnusedPoints(points, tets);
+  std::vector<char> dead(tets.size());
+  for (size_t t = 0; t < tets.size(); ++t) dead[t] = !m.alive[t];
+  eraseTets(points, tets, labels, dead);
 }
 
 
 /// Removes the face-connected pieces of the mesh (over all materials) lighter than `minVolume`
-/// mm^3, except a piece holding a material's last tets. Points are left to the caller.
+/// mm^3, except a piece holding a material's last tets (and the points only they used).
 void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
                      std::vector<int32_t>& labels, double minVolume, OptimizeResult& r) {
   const size_t n = tets.size();
@@ -592,17 +593,7 @@ void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 
     r.fragmentTets += members[root].size();
     r.fragmentVolume += volume[root];
   }
-  if (r.fragmentTets == 0) return;
-  std::vector<std::array<int32_t, 4>> keptTets;
-  std::vector<int32_t> keptLabels;
-  for (uint32_t t = 0; t < n; ++t)
-    if (!drop[t]) {
-      keptTets.push_back(tets[t]);
-      keptLabels.push_back(labels[t]);
-    }
-  tets.swap(keptTets);
-  labels.swap(keptLabels);
-  dropUnusedPoints(points, tets);
+  if (r.fragmentTets > 0) eraseTets(points, tets, labels, drop);
 }
 
 }  // namespace

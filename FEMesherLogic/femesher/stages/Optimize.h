@@ -141,6 +141,11 @@ struct OptimizeResult {
 /// optimize_fragments_removed, optimize_fragment_tets, optimize_fragment_volume_mm3, optimize_passes.
 ReportCounts reportCounts(const OptimizeResult& result);
 
+/// Erases the tets flagged in `erase` (one flag per tet) and the points no tet uses any more;
+/// tets and points keep their order, indices are renumbered.
+void eraseTets(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
+               std::vector<int32_t>& labels, const std::vector<char>& erase);
+
 /// Minimum dihedral angle of a tet in degrees; -1 when it is not positively oriented (or flat).
 double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
 

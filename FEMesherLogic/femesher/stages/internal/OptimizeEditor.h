@@ -4,6 +4,7 @@
 /// Internal to the Optimize stage (Optimize.cxx, InterfaceSmoothing.cxx): the mutable tet mesh
 /// the operations edit, and the vertex move they share. Positions in mm (canonical frame in a run).
 
+#include <femesher/VecMath.h>
 #include <femesher/stages/Optimize.h>
 
 #include <algorithm>
@@ -62,10 +63,8 @@ class Editor {
     double area = 0;
     for (int k = 0; k < 4; ++k) {
       const auto f = face(t, k);
-      const Vec3 &A = pts[size_t(f[0])], &B = pts[size_t(f[1])], &C = pts[size_t(f[2])];
-      const Vec3 u{B[0] - A[0], B[1] - A[1], B[2] - A[2]}, w{C[0] - A[0], C[1] - A[1], C[2] - A[2]};
-      const Vec3 n{u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
-      area = std::max(area, std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]) / 2);
+      const Vec3& A = pts[size_t(f[0])];
+      area = std::max(area, norm(cross(sub(pts[size_t(f[1])], A), sub(pts[size_t(f[2])], A))) / 2);
     }
     return area > 0 ? 3 * std::fabs(volume(t)) / area : 0;
   }
