@@ -49,6 +49,12 @@ const std::vector<Binding>& bindings() {
          true},
         [](MeshingParameters& p, double x) { p.indicators.sigma = x; },
         [](const MeshingParameters& p) { return p.indicators.sigma; });
+    add({"volume_correction", "int", "", "", 0, 10, "Volume-preserving surfaces",
+         "Rounds of the volume-preserving correction of the smooth surfaces: the volume the "
+         "rounding of voxel corners and edges takes from a label is given back on the faces next to "
+         "them (small labels otherwise lose about a tenth of their volume). 0 = off.", true},
+        [](MeshingParameters& p, double x) { p.indicators.volumeIterations = int(x); },
+        [](const MeshingParameters& p) { return double(p.indicators.volumeIterations); });
     add({"target_edge_length", "double", "mm", "", 0, 1e6, "Element size",
          "Target edge length of the surface triangles in mm. Smaller = finer mesh. 0 = automatic "
          "(edge_length_factor x the mean voxel spacing).", false},
@@ -154,6 +160,13 @@ const std::vector<Binding>& bindings() {
          "boundary do not change. Off: no vertex is added.", true},
         [](MeshingParameters& p, double x) { p.optimize.insertVertices = x != 0; },
         [](const MeshingParameters& p) { return p.optimize.insertVertices ? 1.0 : 0.0; });
+    add({"optimize_edge_collapse", "bool", "", "", 0, 1, "Short edge collapse",
+         "An edge of a tet below optimize_min_dihedral shorter than half of facet_distance (two "
+         "junction or interface vertices almost on top of each other) is collapsed onto one of its "
+         "ends when the edge lies on every interface that end lies on and the topology of the mesh "
+         "and of each material stays the same. Off: no vertex is removed.", true},
+        [](MeshingParameters& p, double x) { p.optimize.collapseEdges = x != 0; },
+        [](const MeshingParameters& p) { return p.optimize.collapseEdges ? 1.0 : 0.0; });
     add({"min_fragment_voxels", "double", "voxels", "", 0, 1000, "Floating fragment removal",
          "After optimisation, pieces of the mesh connected to the rest by no face (floating "
          "elements: each is a rigid-body mode for a solver) with less volume than this many "

@@ -37,7 +37,7 @@ struct Optimized {
   RunContext ctx;
 };
 
-/// With keepPoints, nothing is peeled, no fragment removed and no vertex inserted, so that the optimised mesh keeps
+/// With keepPoints, nothing is peeled, no fragment removed, no vertex inserted and no edge collapsed, so that the optimised mesh keeps
 /// every point at its index (moves can be compared point by point).
 std::unique_ptr<Optimized> optimizeShape(const LabelVolume& shape, bool interfaces,
                                          bool keepPoints = false) {
@@ -49,6 +49,7 @@ std::unique_ptr<Optimized> optimizeShape(const LabelVolume& shape, bool interfac
     p.optimize.peelDistance = 0;
     p.optimize.minFragmentVoxels = 0;
     p.optimize.insertVertices = false;
+    p.optimize.collapseEdges = false;
   }
   o->run = std::make_unique<MeshingRun>(shape, p, o->ctx);
   o->run->runThrough(StageId::VolumeMesh);
@@ -104,7 +105,11 @@ size_t expectInterfaceInvariants(const Optimized& o, const std::string& name) {
   EXPECT_GT(worstAngle(o.after), 0) << "an inverted or flat tet";
   EXPECT_GE(worstAngle(o.after), worstAngle(o.before));
   const auto v0 = materialVolumes(o.before), v1 = materialVolumes(o.after);
-  for (const auto& [label, v] : v0) EXPECT_NEAR(v1.at(label), v, 0.005 * v) << "material " << label;
+  // Floating fragments (each a rigid-body mode for a solver) are removed whatever their share of
+  // a material; they are counted, and only they may take more than 0.5 %.
+  for (const auto& [label, v] : v0)
+    EXPECT_NEAR(v1.at(label), v, 0.005 * v + o.result.fragmentVolume)
+        << "material " << label << " (fragments removed: " << o.result.fragmentVolume << " mm^3)";
   // Moved vertices with two or three materials around lie on their interface or line.
   const IndicatorField& field = *s.field;
   const double tol = 1e-3 * s.grid.minSpacing();

@@ -435,3 +435,68 @@ TEST(Optimize, MovesInterfaceVerticesWithinTheirPlaneOnly) {
   const auto r2 = optimizeTetMesh(strict.p, strict.t, strict.labels, op, in, ctx);
   EXPECT_EQ(r2.interfaceVertices, 0u);
 }
+
+// Two interface vertices 0.02 apart on the plane between the materials: the edge between them is
+// collapsed onto one end, the interface stays the plane, volumes stay exact, no face is held by three tets, the worst angle
+// rises; with collapseEdges off nothing is collapsed.
+TEST(Optimize, CollapsesAShortInterfaceEdgeAndKeepsTheInterface) {
+  const int n = 4;
+  auto build = [n] {
+    PlaneInterfaceMesh m(n);
+    auto id = [n](int i, int j, int k) { return size_t(i + (n + 1) * (j + (n + 1) * k)); };
+    for (int j = 1; j < n; ++j)  // an undisturbed plane, then one vertex next to its neighbour
+      for (int i = 1; i < n; ++i) m.p[id(i, j, n / 2)] = {double(i), double(j), n / 2.0};
+    m.p[id(1, 1, n / 2)] = {1.98, 1.0, n / 2.0};
+    return m;
+  };
+  PlaneInterfaceMesh mesh = build();
+  const double before = minOver(mesh.p, mesh.t);
+  ASSERT_GT(before, 0) << "the start must be a valid mesh";
+  ASSERT_LT(before, 2);
+  const size_t points = mesh.p.size();
+  OptimizeInterfaces in;
+  in.projectOntoInterface = [&](int a, int b, Vec3& x) {
+    if (a != 1 || b != 2) return false;
+    x[2] = n / 2.0;
+    return true;
+  };
+  in.hasBox = true;
+  in.boxLo = {0, 0, 0};
+  in.boxHi = {double(n), double(n), double(n)};
+  in.boxTolerance = 1e-9;
+  in.facetDistance = 0.1;  // collapses edges up to 0.05
+  OptimizeParameters op;
+  op.targetMinDihedral = 15;
+  op.insertVertices = false;
+  RunContext ctx;
+  const auto volumes0 = labelVolumes(mesh.p, mesh.t, mesh.labels);
+  const auto r = optimizeTetMesh(mesh.p, mesh.t, mesh.labels, op, in, ctx);
+  EXPECT_GE(r.collapsedEdges, 1u);
+  EXPECT_EQ(mesh.p.size(), points - r.collapsedEdges) << "each collapse drops one vertex";
+  EXPECT_GT(minOver(mesh.p, mesh.t), before + 5);
+  const auto volumes1 = labelVolumes(mesh.p, mesh.t, mesh.labels);
+  for (const auto& [label, v] : volumes0) EXPECT_NEAR(volumes1.at(label), v, 1e-9 * v);
+  std::map<std::array<int32_t, 3>, std::set<int32_t>> faceLabels;
+  std::map<std::array<int32_t, 3>, int> faceCount;
+  for (size_t t = 0; t < mesh.t.size(); ++t)
+    for (int k = 0; k < 4; ++k) {
+      std::array<int32_t, 3> f;
+      int c = 0;
+      for (int q = 0; q < 4; ++q)
+        if (q != k) f[size_t(c++)] = mesh.t[t][size_t(q)];
+      std::sort(f.begin(), f.end());
+      ++faceCount[f];
+      faceLabels[f].insert(mesh.labels[t]);
+    }
+  size_t interfaceFaces = 0;
+  for (const auto& [f, c] : faceCount) {
+    EXPECT_LE(c, 2);
+    if (faceLabels[f].size() != 2) continue;
+    ++interfaceFaces;
+    for (int32_t v : f) EXPECT_EQ(mesh.p[size_t(v)][2], n / 2.0) << "interface face off the plane";
+  }
+  EXPECT_EQ(interfaceFaces > 0, true);
+  PlaneInterfaceMesh off = build();
+  op.collapseEdges = false;
+  EXPECT_EQ(optimizeTetMesh(off.p, off.t, off.labels, op, in, ctx).collapsedEdges, 0u);
+}

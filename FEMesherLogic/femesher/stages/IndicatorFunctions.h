@@ -32,6 +32,9 @@ struct IndicatorParameters {
   double sigma = 0.3;  ///< Gaussian smoothing in voxels (0 = none); a label whose bounding box is
                        ///< thinner than 4 sigma gets sigma = a quarter of that thickness
   int band = 4;        ///< narrow band half-width in voxels; values beyond are clamped
+  /// Volume-preserving correction rounds (0 = off): the corners the smooth surface cuts are given
+  /// back on the faces next to them, so small labels keep their volume (preserve_volume).
+  int volumeIterations = 4;
 };
 
 class IndicatorField {

@@ -46,8 +46,6 @@ bool toInterface(const IndicatorField& f, int a, int b, Vec3& x) {
 
 /// Share of the facet distance an interface triangle may always reach (see smoothInterfaceVertex).
 constexpr double kFacetShare = 0.25;
-/// Share of a material's volume that interface moves may add or take in all.
-constexpr double kVolumeBudget = 1e-3;
 
 /// A face of a vertex's star on an interface: its vertices and the materials a < b either side.
 struct InterfaceFace {

@@ -87,6 +87,10 @@ struct OptimizeParameters {
   bool insertVertices = true;
   /// Move interface and triple-line vertices along their interfaces (needs OptimizeInterfaces).
   bool moveInterfaces = true;
+  /// Collapse an edge of a bad tet shorter than half the facet distance (0.1 voxel
+  /// without interfaces) onto one of its ends, where the edge lies on every interface the
+  /// vanishing end lies on and the topology of the mesh and of each material stays the same.
+  bool collapseEdges = true;
   /// Degrees: after the stage, tets below this are reported and the run's status becomes
   /// "poor_elements" (MeshCheck.h; the stage itself does not read it). 0 = no warning.
   double minDihedralWarning = 5.0;
@@ -127,6 +131,7 @@ struct OptimizeResult {
   size_t peeledTets = 0;        ///< flat boundary tets removed
   size_t relabelledTets = 0;    ///< flat interface tets given to the neighbouring material
   size_t insertedVertices = 0;  ///< vertices inserted (see insertVertices)
+  size_t collapsedEdges = 0;    ///< short edges collapsed (see collapseEdges)
   size_t fragments = 0;         ///< floating fragments removed (see minFragmentVoxels)
   size_t fragmentTets = 0;      ///< their tets
   double fragmentVolume = 0;    ///< their volume, mm^3
@@ -137,7 +142,7 @@ struct OptimizeResult {
 /// optimize_min_dihedral_before/after, optimize_edge_removals, optimize_face_flips,
 /// optimize_smoothed_vertices, optimize_interface_vertex_moves, optimize_triple_line_vertex_moves,
 /// optimize_interface_flips, optimize_peeled_tets, optimize_relabelled_tets,
-/// optimize_inserted_vertices,
+/// optimize_inserted_vertices, optimize_collapsed_edges,
 /// optimize_fragments_removed, optimize_fragment_tets, optimize_fragment_volume_mm3, optimize_passes.
 ReportCounts reportCounts(const OptimizeResult& result);
 

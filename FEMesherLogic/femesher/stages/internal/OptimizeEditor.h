@@ -18,6 +18,9 @@ namespace femesher {
 namespace optimize_detail {
 
 constexpr double kEps = 1e-6;  // degrees: smallest improvement that counts
+/// Share of a material's volume that interface moves, relabelling and edge collapses may add or
+/// take in all (Editor::movedVolume).
+constexpr double kVolumeBudget = 1e-3;
 
 /// Mutable tet mesh with vertex -> tet incidence; faces are found by intersecting incidences.
 class Editor {
