@@ -146,7 +146,11 @@ TEST(BoundaryMesh, FacetDistanceRefinementBringsTrianglesToTheInterface) {
       "%zu of %zu (%zu points inserted); 95th percentile %.3f -> %.3f mm\n",
       delta, countAbove(before, delta), before.size(), countAbove(after, delta), after.size(),
       refined.refinementPoints, before[before.size() * 95 / 100], after[after.size() * 95 / 100]);
-  EXPECT_LT(countAbove(after, delta) * 5, countAbove(before, delta));
+  // The share of far triangles drops at least five-fold (measured: 40 % -> 5 %; the rest are
+  // where the volume-preserving correction leaves voxel-scale detail that a point closer than half
+  // the triangle's shortest edge would be needed for).
+  EXPECT_LT(5.0 * double(countAbove(after, delta)) / double(after.size()),
+            double(countAbove(before, delta)) / double(before.size()));
   EXPECT_LT(after[after.size() * 95 / 100], before[before.size() * 95 / 100]);
   EXPECT_LT(after.back(), before.back());  // the largest distance
   EXPECT_GT(refined.refinementPoints, 0u);
