@@ -161,7 +161,7 @@ const std::vector<Binding>& bindings() {
         [](MeshingParameters& p, double x) { p.optimize.insertVertices = x != 0; },
         [](const MeshingParameters& p) { return p.optimize.insertVertices ? 1.0 : 0.0; });
     add({"optimize_edge_collapse", "bool", "", "", 0, 1, "Short edge collapse",
-         "An edge of a tet below optimize_min_dihedral shorter than half of facet_distance (two "
+         "An edge of a tet below optimize_min_dihedral shorter than facet_distance (two "
          "junction or interface vertices almost on top of each other) is collapsed onto one of its "
          "ends when the edge lies on every interface that end lies on and the topology of the mesh "
          "and of each material stays the same. Off: no vertex is removed.", true},

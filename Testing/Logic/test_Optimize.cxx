@@ -11,6 +11,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <set>
@@ -436,8 +437,9 @@ TEST(Optimize, MovesInterfaceVerticesWithinTheirPlaneOnly) {
   EXPECT_EQ(r2.interfaceVertices, 0u);
 }
 
-// Two interface vertices 0.02 apart on the plane between the materials: the edge between them is
-// collapsed onto one end, the interface stays the plane, volumes stay exact, no face is held by three tets, the worst angle
+// Two interface vertices 0.02 apart on the plane between the materials, and one on a box face
+// 0.02 from one on a box edge: the short edges are collapsed onto one end (never moving a box
+// vertex off a box plane), the interface stays the plane, volumes stay exact, no face is held by three tets, the worst angle
 // rises; with collapseEdges off nothing is collapsed.
 TEST(Optimize, CollapsesAShortInterfaceEdgeAndKeepsTheInterface) {
   const int n = 4;
@@ -447,6 +449,22 @@ TEST(Optimize, CollapsesAShortInterfaceEdgeAndKeepsTheInterface) {
     for (int j = 1; j < n; ++j)  // an undisturbed plane, then one vertex next to its neighbour
       for (int i = 1; i < n; ++i) m.p[id(i, j, n / 2)] = {double(i), double(j), n / 2.0};
     m.p[id(1, 1, n / 2)] = {1.98, 1.0, n / 2.0};
+    // On the box face x = 0, next to the vertex on the box edge x = y = 0.
+    m.p[id(0, 1, n / 2)] = {0.0, 0.02, n / 2.0};
+    // In the tets of that edge the face vertex comes first (an even permutation keeps the
+    // orientation), so the first collapse tried is the edge vertex's, which must be refused.
+    const int32_t inner = int32_t(id(0, 1, n / 2)), box = int32_t(id(0, 0, n / 2));
+    for (auto& T : m.t) {
+      const auto at = [&T](int32_t v) { return std::find(T.begin(), T.end(), v) - T.begin(); };
+      if (at(inner) == 4 || at(box) == 4) continue;
+      while (at(inner) > at(box)) {  // the 3-cycle of positions 1, 2, 3, then 0, 1, 2
+        const int a = at(inner) == 0 || at(box) == 0 ? 0 : 1;
+        const int32_t x = T[size_t(a)];
+        T[size_t(a)] = T[size_t(a + 2)];
+        T[size_t(a + 2)] = T[size_t(a + 1)];
+        T[size_t(a + 1)] = x;
+      }
+    }
     return m;
   };
   PlaneInterfaceMesh mesh = build();
@@ -464,10 +482,11 @@ TEST(Optimize, CollapsesAShortInterfaceEdgeAndKeepsTheInterface) {
   in.boxLo = {0, 0, 0};
   in.boxHi = {double(n), double(n), double(n)};
   in.boxTolerance = 1e-9;
-  in.facetDistance = 0.1;  // collapses edges up to 0.05
+  in.facetDistance = 0.1;  // collapses edges up to 0.1
   OptimizeParameters op;
   op.targetMinDihedral = 15;
   op.insertVertices = false;
+  op.peelDistance = 0;  // peeling would take the flat tets on the box face instead
   RunContext ctx;
   const auto volumes0 = labelVolumes(mesh.p, mesh.t, mesh.labels);
   const auto r = optimizeTetMesh(mesh.p, mesh.t, mesh.labels, op, in, ctx);
@@ -496,6 +515,18 @@ TEST(Optimize, CollapsesAShortInterfaceEdgeAndKeepsTheInterface) {
     for (int32_t v : f) EXPECT_EQ(mesh.p[size_t(v)][2], n / 2.0) << "interface face off the plane";
   }
   EXPECT_EQ(interfaceFaces > 0, true);
+  // The box stays exact: its six faces are still covered by outer triangles lying on them (the
+  // box-edge vertex collapsed onto the one at y = 0.02 would tilt some of them).
+  for (int a = 0; a < 3; ++a)
+    for (double plane : {0.0, double(n)}) {
+      double area = 0;
+      for (const auto& [f, c] : faceCount) {
+        if (c != 1) continue;
+        const Vec3 &A = mesh.p[size_t(f[0])], &B = mesh.p[size_t(f[1])], &C = mesh.p[size_t(f[2])];
+        if (A[a] == plane && B[a] == plane && C[a] == plane) area += norm(cross(sub(B, A), sub(C, A))) / 2;
+      }
+      EXPECT_NEAR(area, double(n * n), 1e-9) << "box face " << a << " at " << plane;
+    }
   PlaneInterfaceMesh off = build();
   op.collapseEdges = false;
   EXPECT_EQ(optimizeTetMesh(off.p, off.t, off.labels, op, in, ctx).collapsedEdges, 0u);

@@ -111,7 +111,6 @@ void gaussianBlur(std::vector<float>& g, const std::array<int, 3>& dims, double 
   }
 }
 
-
 /// Separable Gaussian blur (sigma in voxels) in place of a mostly-zero field: each line scatters
 /// its nonzero samples only (the weight falling past the border stays on the border sample, so the
 /// sum is kept).
@@ -139,7 +138,8 @@ void sparseGaussianBlur(std::vector<float>& g, const std::array<int, 3>& dims, d
         for (int q = 0; q < n; ++q) g[base + q * st] = 0.f;
         for (int q = 0; q < n; ++q) {
           if (in[q] == 0.f) continue;
-          for (int t = -r; t <= r; ++t) g[base + std::clamp(q + t, 0, n - 1) * st] += kernel[t + r] * in[q];
+          for (int t = -r; t <= r; ++t)
+            g[base + std::clamp(q + t, 0, n - 1) * st] += kernel[t + r] * in[q];
         }
       }
     });
@@ -191,15 +191,18 @@ void preserveVolume(std::vector<float>& f, const std::vector<uint8_t>& inside,
               r[p] = float(inside[p]) - (pos == 27 ? 1.f : 0.f);
               continue;
             }
-            static constexpr float w[3][3] = {{1 / 3.f, 2 / 3.f, 0}, {0, 1, 0}, {0, 2 / 3.f, 1 / 3.f}};
+            static constexpr float w[3][3] = {
+                {1 / 3.f, 2 / 3.f, 0}, {0, 1, 0}, {0, 2 / 3.f, 1 / 3.f}};
             float sx[27], sxy[27];  // [c][b][o] then [c][o][o]
             for (int cb = 0; cb < 9; ++cb)
               for (int o = 0; o < 3; ++o)
-                sx[cb * 3 + o] = w[o][0] * nb[cb * 3] + w[o][1] * nb[cb * 3 + 1] + w[o][2] * nb[cb * 3 + 2];
+                sx[cb * 3 + o] =
+                    w[o][0] * nb[cb * 3] + w[o][1] * nb[cb * 3 + 1] + w[o][2] * nb[cb * 3 + 2];
             for (int c = 0; c < 3; ++c)
               for (int ob = 0; ob < 3; ++ob)
                 for (int oa = 0; oa < 3; ++oa)
-                  sxy[c * 9 + ob * 3 + oa] = w[ob][0] * sx[c * 9 + oa] + w[ob][1] * sx[c * 9 + 3 + oa] +
+                  sxy[c * 9 + ob * 3 + oa] = w[ob][0] * sx[c * 9 + oa] +
+                                             w[ob][1] * sx[c * 9 + 3 + oa] +
                                              w[ob][2] * sx[c * 9 + 6 + oa];
             int in = 0;
             for (int oc = 0; oc < 3; ++oc)
@@ -228,7 +231,8 @@ void preserveVolume(std::vector<float>& f, const std::vector<uint8_t>& inside,
             }
             norm = std::sqrt(norm);
             double extent = 0;
-            for (int a = 0; a < 3; ++a) extent += norm > 0 ? std::abs(g[a]) / norm * spacing[a] : spacing[a] / 3;
+            for (int a = 0; a < 3; ++a)
+              extent += norm > 0 ? std::abs(g[a]) / norm * spacing[a] : spacing[a] / 3;
             r[p] = float(kDamping * kSpread * r[p] * extent);  // f is read here: apply below
           }
     });

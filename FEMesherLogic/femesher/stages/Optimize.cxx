@@ -490,8 +490,9 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
         changed = true;
       }
       if (!changed && params.collapseEdges &&
-          collapseShortEdge(m, t, interfaces.enabled() ? 0.5 * interfaces.facetDistance
-                                                       : 0.1 * params.voxelSize, fresh)) {
+          collapseShortEdge(m, t, interfaces.enabled() ? interfaces.facetDistance
+                                                       : 0.1 * params.voxelSize,
+                            interfaces, fresh)) {
         ++r.collapsedEdges;
         changed = true;
       }

@@ -87,7 +87,7 @@ struct OptimizeParameters {
   bool insertVertices = true;
   /// Move interface and triple-line vertices along their interfaces (needs OptimizeInterfaces).
   bool moveInterfaces = true;
-  /// Collapse an edge of a bad tet shorter than half the facet distance (0.1 voxel
+  /// Collapse an edge of a bad tet shorter than the facet distance (0.1 voxel
   /// without interfaces) onto one of its ends, where the edge lies on every interface the
   /// vanishing end lies on and the topology of the mesh and of each material stays the same.
   bool collapseEdges = true;

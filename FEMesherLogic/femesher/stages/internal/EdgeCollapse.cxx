@@ -14,9 +14,9 @@ namespace optimize_detail {
 namespace {
 
 /// The link of vertex x, or of edge (x, y) when y >= 0, in the sub-complex of the tets of one
-/// label (all tets with label -1), closed by a ghost vertex joined to every face of it that no other
-/// tet of the sub-complex shares (outer boundary, or interface for one material): its vertices,
-/// edges and triangles, each sorted.
+/// label (all tets with label -1), closed by a ghost vertex joined to every face of it that no
+/// other tet of the sub-complex shares (outer boundary, or interface for one material): its
+/// vertices, edges and triangles, each sorted.
 struct Link {
   std::vector<int32_t> vertices;
   std::vector<std::array<int32_t, 2>> edges;
@@ -94,7 +94,18 @@ bool linkCondition(const Editor& m, int32_t u, int32_t v, int32_t label) {
 
 }  // namespace
 
-bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, std::vector<uint32_t>& fresh) {
+bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, const OptimizeInterfaces& in,
+                       std::vector<uint32_t>& fresh) {
+  // The box planes (bit 2a: low side of axis a, 2a + 1: high side) a point lies on.
+  auto boxPlanes = [&](const Vec3& p) {
+    int mask = 0;
+    if (in.hasBox)
+      for (int a = 0; a < 3; ++a) {
+        if (std::fabs(p[size_t(a)] - in.boxLo[size_t(a)]) <= in.boxTolerance) mask |= 1 << (2 * a);
+        if (std::fabs(p[size_t(a)] - in.boxHi[size_t(a)]) <= in.boxTolerance) mask |= 2 << (2 * a);
+      }
+    return mask;
+  };
   const auto T = m.tets[t];
   int bi = -1, bj = -1;
   double best = maxLength;
@@ -124,11 +135,15 @@ bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, std::vector<uint
   std::vector<uint32_t> ring;
   std::vector<int32_t> edgeMats, goneMats;
   for (int attempt = 0; attempt < 2; ++attempt) {
-    const int32_t keep = T[size_t(attempt == 0 ? bi : bj)], gone = T[size_t(attempt == 0 ? bj : bi)];
+    const int32_t keep = T[size_t(attempt == 0 ? bi : bj)],
+                  gone = T[size_t(attempt == 0 ? bj : bi)];
     m.tetsOnEdge(keep, gone, ring);
     const bool edgeOuter = materialsAndOuter(ring, keep, gone, edgeMats);
     const bool goneOuter = materialsAndOuter(m.around[size_t(gone)], gone, -1, goneMats);
     if (edgeMats != goneMats || (goneOuter && !edgeOuter)) continue;
+    // A vertex on the volume's box keeps every box plane it is on: the box stays exact.
+    const int goneBox = boxPlanes(m.pts[size_t(gone)]);
+    if ((goneBox & boxPlanes(m.pts[size_t(keep)])) != goneBox) continue;
     if (!linkCondition(m, keep, gone, -1)) continue;
     bool ok = true;
     for (int32_t label : goneMats) ok = ok && linkCondition(m, keep, gone, label);
@@ -166,12 +181,14 @@ bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, std::vector<uint
     };
     for (uint32_t s : m.around[size_t(gone)]) account(m.labels[s], -m.volume(s));
     for (const auto& [s, N] : moved) {
-      const Vec3 &a = m.pts[size_t(N[0])];
+      const Vec3& a = m.pts[size_t(N[0])];
       account(m.labels[s], dot(sub(m.pts[size_t(N[1])], a),
-                               cross(sub(m.pts[size_t(N[2])], a), sub(m.pts[size_t(N[3])], a))) / 6);
+                               cross(sub(m.pts[size_t(N[2])], a), sub(m.pts[size_t(N[3])], a))) /
+                               6);
     }
     for (const auto& [l, c] : change)
-      ok = ok && std::fabs(m.movedVolume[size_t(l)] + c) <= kVolumeBudget * m.startVolume[size_t(l)];
+      ok =
+          ok && std::fabs(m.movedVolume[size_t(l)] + c) <= kVolumeBudget * m.startVolume[size_t(l)];
     if (!ok) continue;
     for (const auto& [l, c] : change) m.movedVolume[size_t(l)] += c;
     for (uint32_t s : ring) m.kill(s);

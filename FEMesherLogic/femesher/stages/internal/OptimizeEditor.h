@@ -199,12 +199,14 @@ bool relabelFlatTet(Editor& m, uint32_t t, const OptimizeInterfaces& interfaces,
 /// by moving one end (`gone`) onto the other (`keep`), which stays where it is: the tets around
 /// the edge vanish and gone's other tets take keep instead. Allowed only when the edge lies on
 /// every interface and boundary gone lies on (the same materials around both, an outer face
-/// holding the edge if gone is on the outer boundary), the link condition holds for the whole mesh
+/// holding the edge if gone is on the outer boundary, every box plane of gone also keep's when
+/// `interfaces` knows the box), the link condition holds for the whole mesh
 /// and for each material, no new tet is flat or inverted, the worst of the changed tets rises and
 /// every material's volume stays within the budget interface moves share (kVolumeBudget).
 /// Interfaces move by at most the edge's length. Both ends are tried as `keep`; the new tets go
 /// to `fresh`. True when applied (internal/EdgeCollapse.cxx).
-bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, std::vector<uint32_t>& fresh);
+bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, const OptimizeInterfaces& interfaces,
+                       std::vector<uint32_t>& fresh);
 
 /// Moves an interface or triple-line vertex along its interface (InterfaceSmoothing.h); false
 /// when v is of another class or no move helps. `kind` gets 2 (interface) or 3 (triple line).
