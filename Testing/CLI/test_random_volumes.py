@@ -67,7 +67,8 @@ print(name, "exit", extra["exit"], extra.get("error", extra.get("status")))
 for r in rows + [extra]:
     judge(r)
 # Regression floor for the optimiser (issue 12): the share of the 30 meshes whose worst tet
-# reaches min_dihedral_warning (5 degrees). Measured 2026-11-24: 28 of 30; the floor leaves room for small shifts.
+# reaches min_dihedral_warning (5 degrees). Measured 2026-11-24: 28 of 30, then 27 after the
+# volume-preserving indicators (while 300 volumes went 239 -> 260); the floor leaves room for shifts.
 reached = sum(1 for r in rows if r["exit"] == 0 and r["worst"] >= r["warning_deg"] - 1e-6)
 print("%d of %d meshes reach a worst angle of 5 degrees" % (reached, len(rows)))
 check(reached >= FLOOR, "only %d of %d meshes reach 5 degrees (floor %d)" % (reached, len(rows), FLOOR))
