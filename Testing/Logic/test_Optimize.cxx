@@ -365,18 +365,14 @@ struct PlaneInterfaceMesh {
   }
 };
 
-}  // namespace
-
-TEST(Optimize, MovesInterfaceVerticesWithinTheirPlaneOnly) {
-  const int n = 4;
-  PlaneInterfaceMesh mesh(n);
-  ASSERT_GT(minOver(mesh.p, mesh.t), 0);
-  const double before = minOver(mesh.p, mesh.t);
+/// The interfaces of PlaneInterfaceMesh(n): materials 1 and 2 meet on the plane z = n / 2 (the
+/// projection onto it counts its calls in `calls` when given), the box is [0, n]^3, the facet
+/// distance 0.1.
+OptimizeInterfaces planeInterfaces(int n, int* calls = nullptr) {
   OptimizeInterfaces in;
-  int calls = 0;
-  in.projectOntoInterface = [&](int a, int b, Vec3& x) {
-    ++calls;
-    if (a != 1 || b != 2) return false;  // the box faces are no interface of this test
+  in.projectOntoInterface = [n, calls](int a, int b, Vec3& x) {
+    if (calls) ++*calls;
+    if (a != 1 || b != 2) return false;  // the box faces are no interface of these tests
     x[2] = n / 2.0;
     return true;
   };
@@ -385,6 +381,34 @@ TEST(Optimize, MovesInterfaceVerticesWithinTheirPlaneOnly) {
   in.boxHi = {double(n), double(n), double(n)};
   in.boxTolerance = 1e-9;
   in.facetDistance = 0.1;
+  return in;
+}
+
+/// Every face of the tets (sorted vertex triple) with the labels of the tets holding it.
+std::map<std::array<int32_t, 3>, std::vector<int32_t>> faceLabels(const Tets& tets,
+                                                                  const std::vector<int32_t>& labels) {
+  std::map<std::array<int32_t, 3>, std::vector<int32_t>> faces;
+  for (size_t t = 0; t < tets.size(); ++t)
+    for (int k = 0; k < 4; ++k) {
+      std::array<int32_t, 3> f;
+      int c = 0;
+      for (int q = 0; q < 4; ++q)
+        if (q != k) f[size_t(c++)] = tets[t][size_t(q)];
+      std::sort(f.begin(), f.end());
+      faces[f].push_back(labels[t]);
+    }
+  return faces;
+}
+
+}  // namespace
+
+TEST(Optimize, MovesInterfaceVerticesWithinTheirPlaneOnly) {
+  const int n = 4;
+  PlaneInterfaceMesh mesh(n);
+  ASSERT_GT(minOver(mesh.p, mesh.t), 0);
+  const double before = minOver(mesh.p, mesh.t);
+  int calls = 0;
+  OptimizeInterfaces in = planeInterfaces(n, &calls);
   OptimizeParameters op;
   op.targetMinDihedral = 30;
   RunContext ctx;
@@ -419,17 +443,7 @@ TEST(Optimize, MovesInterfaceVerticesWithinTheirPlaneOnly) {
   const auto volumes1 = labelVolumes(mesh.p, mesh.t, mesh.labels);
   for (const auto& [label, v] : volumes0) EXPECT_NEAR(volumes1.at(label), v, 1e-9 * v);
   // Every face is held by one tet (box) or two (inside a material or on the interface).
-  std::map<std::array<int32_t, 3>, int> faceCount;
-  for (const auto& T : mesh.t)
-    for (int k = 0; k < 4; ++k) {
-      std::array<int32_t, 3> f;
-      int c = 0;
-      for (int q = 0; q < 4; ++q)
-        if (q != k) f[size_t(c++)] = T[size_t(q)];
-      std::sort(f.begin(), f.end());
-      ++faceCount[f];
-    }
-  for (const auto& [f, c] : faceCount) EXPECT_LE(c, 2);
+  for (const auto& [f, held] : faceLabels(mesh.t, mesh.labels)) EXPECT_LE(held.size(), 2u);
   // A refused facet distance (0) leaves the interface vertices where they are.
   PlaneInterfaceMesh strict(n);
   in.facetDistance = 0;
@@ -472,17 +486,7 @@ TEST(Optimize, CollapsesAShortInterfaceEdgeAndKeepsTheInterface) {
   ASSERT_GT(before, 0) << "the start must be a valid mesh";
   ASSERT_LT(before, 2);
   const size_t points = mesh.p.size();
-  OptimizeInterfaces in;
-  in.projectOntoInterface = [&](int a, int b, Vec3& x) {
-    if (a != 1 || b != 2) return false;
-    x[2] = n / 2.0;
-    return true;
-  };
-  in.hasBox = true;
-  in.boxLo = {0, 0, 0};
-  in.boxHi = {double(n), double(n), double(n)};
-  in.boxTolerance = 1e-9;
-  in.facetDistance = 0.1;  // collapses edges up to 0.1
+  const OptimizeInterfaces in = planeInterfaces(n);  // collapses edges up to 0.1
   OptimizeParameters op;
   op.targetMinDihedral = 15;
   op.insertVertices = false;
@@ -495,22 +499,11 @@ TEST(Optimize, CollapsesAShortInterfaceEdgeAndKeepsTheInterface) {
   EXPECT_GT(minOver(mesh.p, mesh.t), before + 5);
   const auto volumes1 = labelVolumes(mesh.p, mesh.t, mesh.labels);
   for (const auto& [label, v] : volumes0) EXPECT_NEAR(volumes1.at(label), v, 1e-9 * v);
-  std::map<std::array<int32_t, 3>, std::set<int32_t>> faceLabels;
-  std::map<std::array<int32_t, 3>, int> faceCount;
-  for (size_t t = 0; t < mesh.t.size(); ++t)
-    for (int k = 0; k < 4; ++k) {
-      std::array<int32_t, 3> f;
-      int c = 0;
-      for (int q = 0; q < 4; ++q)
-        if (q != k) f[size_t(c++)] = mesh.t[t][size_t(q)];
-      std::sort(f.begin(), f.end());
-      ++faceCount[f];
-      faceLabels[f].insert(mesh.labels[t]);
-    }
+  const auto faces = faceLabels(mesh.t, mesh.labels);
   size_t interfaceFaces = 0;
-  for (const auto& [f, c] : faceCount) {
-    EXPECT_LE(c, 2);
-    if (faceLabels[f].size() != 2) continue;
+  for (const auto& [f, held] : faces) {
+    EXPECT_LE(held.size(), 2u);
+    if (held.size() != 2 || held[0] == held[1]) continue;
     ++interfaceFaces;
     for (int32_t v : f) EXPECT_EQ(mesh.p[size_t(v)][2], n / 2.0) << "interface face off the plane";
   }
@@ -520,8 +513,8 @@ TEST(Optimize, CollapsesAShortInterfaceEdgeAndKeepsTheInterface) {
   for (int a = 0; a < 3; ++a)
     for (double plane : {0.0, double(n)}) {
       double area = 0;
-      for (const auto& [f, c] : faceCount) {
-        if (c != 1) continue;
+      for (const auto& [f, held] : faces) {
+        if (held.size() != 1) continue;
         const Vec3 &A = mesh.p[size_t(f[0])], &B = mesh.p[size_t(f[1])], &C = mesh.p[size_t(f[2])];
         if (A[a] == plane && B[a] == plane && C[a] == plane) area += norm(cross(sub(B, A), sub(C, A))) / 2;
       }

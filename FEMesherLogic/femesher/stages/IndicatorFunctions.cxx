@@ -81,14 +81,21 @@ void squaredEdt(std::vector<float>& g, const std::array<int, 3>& dims, const Vec
   }
 }
 
-/// Separable Gaussian blur (sigma in voxels) in place; borders replicate.
-void gaussianBlur(std::vector<float>& g, const std::array<int, 3>& dims, double sigma, int threads) {
-  if (sigma <= 0) return;
+/// Normalised Gaussian kernel (sigma in samples), radius ceil(3 sigma) and at least 1.
+std::vector<float> gaussianKernel(double sigma) {
   const int r = std::max(1, int(std::ceil(3 * sigma)));
   std::vector<float> kernel(2 * r + 1);
   double sum = 0;
   for (int i = -r; i <= r; ++i) sum += kernel[i + r] = float(std::exp(-0.5 * i * i / (sigma * sigma)));
   for (auto& k : kernel) k = float(k / sum);
+  return kernel;
+}
+
+/// Separable Gaussian blur (sigma in voxels) in place; borders replicate.
+void gaussianBlur(std::vector<float>& g, const std::array<int, 3>& dims, double sigma, int threads) {
+  if (sigma <= 0) return;
+  const std::vector<float> kernel = gaussianKernel(sigma);
+  const int r = int(kernel.size() / 2);
   const size_t strides[3] = {1, size_t(dims[0]), size_t(dims[0]) * dims[1]};
   for (int axis = 0; axis < 3; ++axis) {
     const int n = dims[axis];
@@ -116,11 +123,8 @@ void gaussianBlur(std::vector<float>& g, const std::array<int, 3>& dims, double 
 /// sum is kept).
 void sparseGaussianBlur(std::vector<float>& g, const std::array<int, 3>& dims, double sigma,
                         int threads) {
-  const int r = std::max(1, int(std::ceil(3 * sigma)));
-  std::vector<float> kernel(2 * r + 1);
-  double sum = 0;
-  for (int i = -r; i <= r; ++i) sum += kernel[i + r] = float(std::exp(-0.5 * i * i / (sigma * sigma)));
-  for (auto& k : kernel) k = float(k / sum);
+  const std::vector<float> kernel = gaussianKernel(sigma);
+  const int r = int(kernel.size() / 2);
   const size_t strides[3] = {1, size_t(dims[0]), size_t(dims[0]) * dims[1]};
   for (int axis = 0; axis < 3; ++axis) {
     const int n = dims[axis];

@@ -163,11 +163,10 @@ bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, const OptimizeIn
       for (uint32_t s : m.around[size_t(gone)]) v += std::fabs(m.volume(s));
       return v;
     }();
+    std::vector<double> movedVolume;
     for (const auto& [s, N] : moved) {
-      const Vec3 &a = m.pts[size_t(N[0])], &b = m.pts[size_t(N[1])], &c = m.pts[size_t(N[2])],
-                 &d = m.pts[size_t(N[3])];
-      const double vol = dot(sub(b, a), cross(sub(c, a), sub(d, a))) / 6;
-      if (!(vol > 1e-9 * oldVolume)) ok = false;
+      movedVolume.push_back(m.volume(N));
+      if (!(movedVolume.back() > 1e-9 * oldVolume)) ok = false;
       newMin = std::min(newMin, m.quality(N));
     }
     if (!ok || !(newMin > oldMin + kEps)) continue;
@@ -180,12 +179,7 @@ bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, const OptimizeIn
       change.emplace_back(label, v);
     };
     for (uint32_t s : m.around[size_t(gone)]) account(m.labels[s], -m.volume(s));
-    for (const auto& [s, N] : moved) {
-      const Vec3& a = m.pts[size_t(N[0])];
-      account(m.labels[s], dot(sub(m.pts[size_t(N[1])], a),
-                               cross(sub(m.pts[size_t(N[2])], a), sub(m.pts[size_t(N[3])], a))) /
-                               6);
-    }
+    for (size_t i = 0; i < moved.size(); ++i) account(m.labels[moved[i].first], movedVolume[i]);
     for (const auto& [l, c] : change)
       ok =
           ok && std::fabs(m.movedVolume[size_t(l)] + c) <= kVolumeBudget * m.startVolume[size_t(l)];

@@ -51,8 +51,9 @@ class Editor {
   /// far, and the volume peeling removed (mm^3).
   std::vector<double> startVolume, movedVolume, peeledVolume;
 
-  double volume(uint32_t t) const {
-    const auto& T = tets[t];
+  double volume(uint32_t t) const { return volume(tets[t]); }
+  /// Signed volume of the tet T (positive when positively oriented).
+  double volume(const std::array<int32_t, 4>& T) const {
     const Vec3 &a = pts[size_t(T[0])], &b = pts[size_t(T[1])], &c = pts[size_t(T[2])],
                &d = pts[size_t(T[3])];
     const Vec3 u{b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v{c[0] - a[0], c[1] - a[1], c[2] - a[2]},
