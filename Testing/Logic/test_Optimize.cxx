@@ -70,6 +70,21 @@ TEST(Optimize, MinDihedralOfRegularFlatAndInvertedTets) {
 
 namespace {
 
+/// Adds a regular tet of edge 40 * sqrt(2) centred at (x, x, x), its own piece, of `label`.
+void addBulkTet(std::vector<Vec3>& p, Tets& t, std::vector<int32_t>& labels, double x,
+                int32_t label) {
+  const double L = 20;
+  const int32_t first = int32_t(p.size());
+  for (const Vec3& q : {Vec3{x + L, x + L, x + L}, Vec3{x + L, x - L, x - L},
+                        Vec3{x - L, x + L, x - L}, Vec3{x - L, x - L, x + L}})
+    p.push_back(q);
+  std::array<int32_t, 4> T{first, first + 1, first + 2, first + 3};
+  if (tetMinDihedral(p[size_t(T[0])], p[size_t(T[1])], p[size_t(T[2])], p[size_t(T[3])]) < 0)
+    std::swap(T[0], T[1]);
+  t.push_back(T);
+  labels.push_back(label);
+}
+
 /// A corner tet (0, 1, 2, 3) and a cap (1, 2, 3, 4) on its slanted face, lifted by `lift` along
 /// the face normal; with `bulk`, a large regular tet of the same material far away (its own
 /// piece), so that the cap is a small share of the material's volume.
@@ -97,18 +112,7 @@ struct CornerWithCap {
       labels.push_back(label);
     }
   }
-  /// A regular tet of edge 40 * sqrt(2) centred at (x, x, x), its own piece.
-  void addBulk(double x, int32_t label) {
-    const double L = 20;
-    const int32_t first = int32_t(p.size());
-    for (const Vec3& q : {Vec3{x + L, x + L, x + L}, Vec3{x + L, x - L, x - L},
-                          Vec3{x - L, x + L, x - L}, Vec3{x - L, x - L, x + L}})
-      p.push_back(q);
-    std::array<int32_t, 4> T{first, first + 1, first + 2, first + 3};
-    if (tetMinDihedral(p[T[0]], p[T[1]], p[T[2]], p[T[3]]) < 0) std::swap(T[0], T[1]);
-    t.push_back(T);
-    labels.push_back(label);
-  }
+  void addBulk(double x, int32_t label) { addBulkTet(p, t, labels, x, label); }
 };
 
 }  // namespace
@@ -223,11 +227,12 @@ TEST(Optimize, RelabelsAFlatTetInsideAnotherMaterialAndThenRemovesIt) {
   }
 }
 
-TEST(Optimize, RelabelsASliverWhereTheNewInterfaceCannotBeCheckedOnlyWhenVeryThin) {
+TEST(Optimize, RelabelsASliverWhereTheNewInterfaceCannotBeCheckedOnlyWhenThinnerThanTheFacetDistance) {
   // As above, but the corner tet is material 3: joining material 1 turns the cap's base into an
   // interface of 1 and 3, which the projection here cannot place (it fails). The cap (0.01 thick)
-  // may still go when it is thinner than a tenth of the facet distance, not otherwise.
-  for (const double facetDistance : {1.0, 0.05}) {
+  // may still go when it is thinner than the facet distance (its faces then lie that close to
+  // the ones they replace), not otherwise.
+  for (const double facetDistance : {1.0, 0.005}) {
     CornerWithCap m(0.01, true);
     m.labels = {3, 2, 2};
     m.addBulk(-100, 1);
@@ -249,8 +254,137 @@ TEST(Optimize, RelabelsASliverWhereTheNewInterfaceCannotBeCheckedOnlyWhenVeryThi
       EXPECT_NEAR(labelVolumes(m.p, m.t, m.labels).at(2), before2 - cap, 1e-9) << "the cap left";
     } else {
       EXPECT_EQ(r.relabelledTets, 0u);
-      EXPECT_NEAR(labelVolumes(m.p, m.t, m.labels).at(2), before2, 1e-9) << "the cap stayed";
+      bool capStayed = false;  // (its vertices, junction points, may move a little)
+      for (size_t i = 0; i < m.t.size(); ++i) {
+        auto T = m.t[i];
+        std::sort(T.begin(), T.end());
+        capStayed |= m.labels[i] == 2 && T == std::array<int32_t, 4>{1, 2, 3, 4};
+      }
+      EXPECT_TRUE(capStayed);
     }
+  }
+}
+
+namespace {
+
+/// A sliver (A, B, C, D) lying on the plane z = 0 (edge AC on it, edge BD `lift` above), its two
+/// lower faces on two tets reaching down to E, and a far bulk tet: material 1 throughout. The
+/// sliver's upper faces, and the lower tets' other faces, are the outer boundary.
+struct SliverOnPlane {
+  std::vector<Vec3> p = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0.5, 0.5, -1}};
+  Tets t = {{0, 1, 2, 3}, {0, 2, 1, 4}, {0, 3, 2, 4}};
+  std::vector<int32_t> labels = {1, 1, 1};
+  explicit SliverOnPlane(double lift) {
+    p[1][2] = p[3][2] = lift;
+    for (auto& T : t)
+      if (tetMinDihedral(p[size_t(T[0])], p[size_t(T[1])], p[size_t(T[2])], p[size_t(T[3])]) < 0)
+        std::swap(T[0], T[1]);
+    addBulkTet(p, t, labels, 100, 1);
+  }
+};
+
+}  // namespace
+
+TEST(Optimize, PeelsAThickerBoundarySliverWhenTheSurfaceBelowIsWithinTheFacetDistance) {
+  // The sliver is 0.05 above the plane, far thicker than the peel distance: it goes only when the
+  // faces that come to the surface (centroids 0.05 / 3 off the plane) are within the facet
+  // distance of the smooth boundary, here the plane z = 0.
+  for (const double facetDistance : {0.05, 0.01}) {
+    SliverOnPlane m(0.05);
+    ASSERT_GT(minOver(m.p, m.t), 0);
+    ASSERT_LT(minOver(m.p, m.t), 10);
+    OptimizeInterfaces in;
+    in.projectOntoInterface = [](int a, int, Vec3& q) {
+      q[2] = 0;
+      return a == 0;
+    };
+    in.facetDistance = facetDistance;
+    RunContext ctx;
+    OptimizeParameters op;
+    op.targetMinDihedral = 20;
+    op.peelDistance = 0.001;
+    op.minFragmentVoxels = 0;
+    op.moveInterfaces = false;
+    op.insertVertices = false;
+    const double volumeBefore = labelVolumes(m.p, m.t, m.labels).at(1);
+    const auto r = optimizeTetMesh(m.p, m.t, m.labels, op, in, ctx);
+    if (facetDistance > 0.05 / 3) {
+      EXPECT_EQ(r.peeledTets, 1u);
+      EXPECT_EQ(m.t.size(), 3u);
+      EXPECT_GE(minOver(m.p, m.t), 20) << "what is left is the two tets below and the bulk";
+    } else {  // edge AC may be flipped away instead (a 3-to-2 flip inside material 1)
+      EXPECT_EQ(r.peeledTets, 0u);
+      EXPECT_NEAR(labelVolumes(m.p, m.t, m.labels).at(1), volumeBefore, 1e-9);
+    }
+  }
+}
+
+TEST(Optimize, NeverPeelsABoundarySliverWhenThatWouldPinchTheBoundary) {
+  // The two lower tets reach down to two different points: edge AC is on the outer boundary
+  // already, and peeling the sliver would leave it with four outer faces (a non-manifold
+  // boundary), so it stays.
+  SliverOnPlane m(0.05);
+  m.p.push_back({0.5, 0.5, -1.2});
+  for (int32_t& v : m.t[2])
+    if (v == 4) v = int32_t(m.p.size() - 1);
+  OptimizeInterfaces in;
+  in.projectOntoInterface = [](int a, int, Vec3& q) {
+    q[2] = 0;
+    return a == 0;
+  };
+  in.facetDistance = 1;
+  RunContext ctx;
+  OptimizeParameters op;
+  op.targetMinDihedral = 20;
+  op.peelDistance = 0.001;
+  op.minFragmentVoxels = 0;
+  op.moveInterfaces = false;
+  op.insertVertices = false;
+  const auto r = optimizeTetMesh(m.p, m.t, m.labels, op, in, ctx);
+  EXPECT_EQ(r.peeledTets, 0u);
+  EXPECT_EQ(m.t.size(), 4u);
+}
+
+TEST(Optimize, MovesAJunctionOfFourMaterialsWithinAQuarterOfTheFacetDistance) {
+  // Eight tets around the centre of an octahedron, two of each of four materials; the centre
+  // sits near the +x corner, so the tets on it are flat. Every interface "projection" succeeds
+  // where it is (no distance bound), except onto the background and onto triple lines.
+  for (const double facetDistance : {2.0, 0.2}) {
+    std::vector<Vec3> p = {{0.8, 0.05, 0.03}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0},
+                           {0, -1, 0},        {0, 0, 1}, {0, 0, -1}};
+    Tets t;
+    std::vector<int32_t> labels;
+    for (int32_t x : {1, 2})
+      for (int32_t y : {3, 4})
+        for (int32_t z : {5, 6}) {
+          std::array<int32_t, 4> T{0, x, y, z};
+          if (tetMinDihedral(p[size_t(T[0])], p[size_t(T[1])], p[size_t(T[2])], p[size_t(T[3])]) < 0)
+            std::swap(T[2], T[3]);
+          t.push_back(T);
+          labels.push_back(1 + (x == 1 ? 0 : 2) + (y == 3 ? 0 : 1));
+        }
+    // Far bulk tets, one per material, so that the move is within the materials' volume budget.
+    for (int32_t label = 1; label <= 4; ++label) addBulkTet(p, t, labels, 100.0 * label, label);
+    ASSERT_GT(minOver(p, t), 0);
+    const double before = minOver(p, t);
+    const std::vector<Vec3> start = p;
+    OptimizeInterfaces in;
+    in.projectOntoInterface = [](int a, int, Vec3&) { return a != 0; };
+    in.projectOntoJunction = [](const std::array<int, 3>&, Vec3&) { return false; };
+    in.facetDistance = facetDistance;
+    RunContext ctx;
+    OptimizeParameters op;
+    op.targetMinDihedral = 30;
+    op.peelDistance = 0;
+    op.minFragmentVoxels = 0;
+    op.collapseEdges = false;
+    op.insertVertices = false;
+    const auto r = optimizeTetMesh(p, t, labels, op, in, ctx);
+    EXPECT_GE(r.junctionVertices, 1u);
+    EXPECT_GT(minOver(p, t), before);
+    // The corners are junctions too: their own four materials and the background.
+    for (size_t i = 0; i < 7; ++i)
+      EXPECT_LE(norm(sub(p[i], start[i])), 0.25 * facetDistance + 1e-9) << "vertex " << i;
   }
 }
 
@@ -411,6 +545,7 @@ TEST(Optimize, MovesInterfaceVerticesWithinTheirPlaneOnly) {
   OptimizeInterfaces in = planeInterfaces(n, &calls);
   OptimizeParameters op;
   op.targetMinDihedral = 30;
+  op.peelDistance = 0;  // flat tets on the box would be peeled, which changes the volumes
   RunContext ctx;
   // Interfaces fixed (no callbacks): the flat tets at the shifted plane stay below the target.
   PlaneInterfaceMesh fixed(n);
@@ -428,18 +563,23 @@ TEST(Optimize, MovesInterfaceVerticesWithinTheirPlaneOnly) {
       << "moving the interface vertices should do clearly better than leaving them";
   // Nothing dropped, the interface stays the plane, box vertices stay, volumes are exact.
   ASSERT_EQ(mesh.p.size(), size_t((n + 1) * (n + 1) * (n + 1)));
-  size_t movedOnPlane = 0;
+  size_t movedOnPlane = 0, movedOnBox = 0;
   PlaneInterfaceMesh start(n);
   for (size_t i = 0; i < mesh.p.size(); ++i) {
     const Vec3& s = start.p[i];
     if (s[2] == n / 2.0) {
       EXPECT_EQ(mesh.p[i][2], n / 2.0) << "interface vertex " << i << " left the plane";
       movedOnPlane += mesh.p[i] != s;
+      // On one box face: along the interface's trace on it (the box's edges stay).
+      const int onFaces = (s[0] == 0 || s[0] == n) + (s[1] == 0 || s[1] == n);
+      if (onFaces == 2) EXPECT_EQ(mesh.p[i], s) << "box-edge vertex " << i << " moved";
+      movedOnBox += onFaces == 1 && mesh.p[i] != s;
     }
     for (int a = 0; a < 3; ++a)  // box vertices stay on their faces
       if (s[a] == 0 || s[a] == n) EXPECT_EQ(mesh.p[i][a], s[a]) << "box vertex " << i << " left its face";
   }
-  EXPECT_EQ(movedOnPlane > 0, true);
+  EXPECT_GT(movedOnPlane, 0u);
+  EXPECT_GT(movedOnBox, 0u) << "no interface vertex on a box face moved";
   const auto volumes1 = labelVolumes(mesh.p, mesh.t, mesh.labels);
   for (const auto& [label, v] : volumes0) EXPECT_NEAR(volumes1.at(label), v, 1e-9 * v);
   // Every face is held by one tet (box) or two (inside a material or on the interface).

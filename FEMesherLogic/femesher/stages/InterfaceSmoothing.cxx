@@ -54,18 +54,10 @@ struct InterfaceFace {
   Vec3 normal;  ///< area-weighted, from a towards b
 };
 
-bool onBox(const OptimizeInterfaces& in, const Vec3& p) {
-  if (!in.hasBox) return false;
-  for (int k = 0; k < 3; ++k)
-    if (std::fabs(p[k] - in.boxLo[k]) <= in.boxTolerance ||
-        std::fabs(p[k] - in.boxHi[k]) <= in.boxTolerance)
-      return true;
-  return false;
-}
-
-/// The materials around v (sorted, background 0 for outer faces) and its interface faces.
-void vertexInterfaces(const Editor& m, int32_t v, std::vector<int>& materials,
-                      std::vector<InterfaceFace>& faces) {
+/// The materials around v (sorted, background 0 for outer faces not on the volume's box) and its
+/// interface faces.
+void vertexInterfaces(const Editor& m, const OptimizeInterfaces& in, int32_t v,
+                      std::vector<int>& materials, std::vector<InterfaceFace>& faces) {
   materials.clear();
   faces.clear();
   for (uint32_t t : m.around[size_t(v)]) {
@@ -77,6 +69,10 @@ void vertexInterfaces(const Editor& m, int32_t v, std::vector<int>& materials,
       const int64_t s = m.across(t, f[0], f[1], f[2]);
       const int own = m.labels[t], other = s < 0 ? 0 : m.labels[size_t(s)];
       if (other == own || (s >= 0 && other < own)) continue;  // inside, or seen from the other side
+      if (s < 0 && (optimize_detail::boxPlanes(in, m.pts[size_t(f[0])]) &
+                    optimize_detail::boxPlanes(in, m.pts[size_t(f[1])]) &
+                    optimize_detail::boxPlanes(in, m.pts[size_t(f[2])])) != 0)
+        continue;  // on the volume's box: not an interface
       if (s < 0) materials.push_back(0);
       const Vec3& A = m.pts[size_t(f[0])];
       Vec3 n = cross(sub(m.pts[size_t(f[1])], A), sub(m.pts[size_t(f[2])], A));
@@ -91,11 +87,7 @@ void vertexInterfaces(const Editor& m, int32_t v, std::vector<int>& materials,
 
 /// Distance (mm) from the centroid of `f` to its interface; -1 when the projection fails.
 double centroidDistance(const Editor& m, const OptimizeInterfaces& in, const InterfaceFace& f) {
-  Vec3 g{0, 0, 0};
-  for (int32_t w : f.v)
-    for (int k = 0; k < 3; ++k) g[k] += m.pts[size_t(w)][k] / 3;
-  Vec3 q = g;
-  return in.projectOntoInterface(f.a, f.b, q) ? norm(sub(q, g)) : -1.0;
+  return optimize_detail::faceDistance(m, in, f.v, f.a, f.b);
 }
 
 /// The unit direction of the triple line through a vertex: across the normals of its two most
@@ -129,16 +121,43 @@ Vec3 tripleLineDirection(const std::vector<InterfaceFace>& faces) {
 
 namespace optimize_detail {
 
+double faceDistance(const Editor& m, const OptimizeInterfaces& in, const std::array<int32_t, 3>& f,
+                    int a, int b) {
+  Vec3 g{0, 0, 0};
+  for (int32_t w : f)
+    for (int k = 0; k < 3; ++k) g[k] += m.pts[size_t(w)][k] / 3;
+  Vec3 q = g;
+  return in.projectOntoInterface(a, b, q) ? norm(sub(q, g)) : -1.0;
+}
+
 bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, int& kind) {
   kind = 0;
-  if (onBox(in, m.pts[size_t(v)])) return false;
+  // On the volume's box: only on one of its planes, between two materials; it then moves along
+  // the line where their interface meets that plane.
+  const int box = boxPlanes(in, m.pts[size_t(v)]);
+  if (box != 0 && (box & (box - 1)) != 0) return false;  // a box edge or corner
   std::vector<int> materials;
   std::vector<InterfaceFace> faces;
-  vertexInterfaces(m, v, materials, faces);
-  if (materials.size() != 2 && materials.size() != 3) return false;
-  kind = int(materials.size());
+  vertexInterfaces(m, in, v, materials, faces);
+  if (materials.size() < 2 || (box != 0 && materials.size() != 2)) return false;
+  kind = std::min(int(materials.size()), 4);
+  const Vec3 lineDirection = kind == 3 ? tripleLineDirection(faces) : Vec3{0, 0, 0};
+  if (kind == 3 && (!in.projectOntoJunction || !(norm(lineDirection) > 0))) return false;
   MoveConstraint c;
-  if (kind == 2) {
+  const Vec3 start = m.pts[size_t(v)];
+  if (kind == 4) {
+    // A junction of four or more materials: it may move anywhere within a quarter of the facet
+    // distance of where it was before the first move.
+    const Vec3 anchor = m.junctionStart.emplace(v, start).first->second;
+    const double radius = kFacetShare * in.facetDistance;
+    c.project = [anchor, radius](Vec3& p) {
+      const Vec3 d = sub(p, anchor);
+      const double len = norm(d);
+      if (len > radius)
+        for (int k = 0; k < 3; ++k) p[k] = anchor[k] + d[k] * radius / len;
+      return true;
+    };
+  } else if (kind == 2) {
     Vec3 n{0, 0, 0};
     for (const auto& f : faces)
       for (int k = 0; k < 3; ++k) n[k] += f.normal[k];
@@ -151,10 +170,40 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
     };
     const int a = materials[0], b = materials[1];
     c.project = [&in, a, b](Vec3& p) { return in.projectOntoInterface(a, b, p); };
+    if (box != 0) {
+      int axis = 0;
+      while (!(box & (3 << (2 * axis)))) ++axis;
+      const double plane = (box & (1 << (2 * axis))) ? in.boxLo[size_t(axis)] : in.boxHi[size_t(axis)];
+      Vec3 e{0, 0, 0};
+      e[size_t(axis)] = 1;
+      Vec3 line = cross(n, e);  // the interface's trace on the plane
+      const double sine = norm(line);
+      if (!(sine > 0.2)) return false;  // the interface nearly parallel to the box plane
+      line = {line[0] / sine, line[1] / sine, line[2] / sine};
+      c.tangent = [line](const Vec3& d) {
+        const double x = dot(d, line);
+        return Vec3{x * line[0], x * line[1], x * line[2]};
+      };
+      // Alternating projections onto the interface and the plane (they cross at more than
+      // about 11 degrees, see above): converged when the interface step is negligible.
+      const double tol = 1e-4 * in.facetDistance;
+      c.project = [&in, a, b, axis, plane, tol](Vec3& p) {
+        for (int it = 0; it < 20; ++it) {
+          p[size_t(axis)] = plane;
+          Vec3 q = p;
+          if (!in.projectOntoInterface(a, b, q)) return false;
+          const double step = norm(sub(q, p));
+          p = q;
+          if (step < tol) {
+            p[size_t(axis)] = plane;
+            return true;
+          }
+        }
+        return false;
+      };
+    }
   } else {
-    if (!in.projectOntoJunction) return false;
-    const Vec3 t = tripleLineDirection(faces);
-    if (!(norm(t) > 0)) return false;
+    const Vec3 t = lineDirection;
     c.tangent = [t](const Vec3& d) {
       const double x = dot(d, t);
       return Vec3{x * t[0], x * t[1], x * t[2]};
@@ -164,11 +213,13 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
   }
   // Each interface triangle may end at most max(its distance now, a quarter of the facet
   // distance) from its interface, and never beyond the facet distance unless it is already.
+  // Around a junction point, a triangle whose interface cannot be found (another material leads
+  // at its centroid) is bounded by the quarter facet distance the point may move (bound -1).
   std::vector<double> bound(faces.size());
   for (size_t i = 0; i < faces.size(); ++i) {
     bound[i] = centroidDistance(m, in, faces[i]);
-    if (bound[i] < 0) return false;
-    bound[i] = std::max(bound[i], kFacetShare * in.facetDistance);
+    if (bound[i] < 0 && kind != 4) return false;
+    if (bound[i] >= 0) bound[i] = std::max(bound[i], kFacetShare * in.facetDistance);
   }
   // The net volume the moves add to or take from a material stays within its budget.
   std::vector<std::pair<int, double>> starVolume;
@@ -181,13 +232,14 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
   std::vector<double> change;
   c.accept = [&]() {
     for (size_t i = 0; i < faces.size(); ++i) {
+      if (bound[i] < 0) continue;
       const double d = centroidDistance(m, in, faces[i]);
       if (d < 0 || d > bound[i]) return false;
     }
     volumeChange(change);
     for (size_t l = 0; l < change.size(); ++l)
       if (std::fabs(m.movedVolume[l] + change[l]) > kVolumeBudget * m.startVolume[l]) return false;
-    return !onBox(in, m.pts[size_t(v)]);
+    return boxPlanes(in, m.pts[size_t(v)]) == box;
   };
   if (!smoothVertex(m, v, &c)) return false;
   volumeChange(change);
@@ -280,9 +332,9 @@ bool relabelFlatTet(Editor& m, uint32_t t, const OptimizeInterfaces& in, double 
     // general kind, which raises the worst angle, so it cannot be undone either).
     // Every face that becomes an interface stays within the facet distance of its smooth
     // interface. Where that cannot be checked (the projection fails: near a junction of more
-    // materials, the pair is not the leading one), a tet thinner than a tenth of the facet
-    // distance may still go: its faces lie that close to the interface faces they replace.
-    const bool sliver = m.thickness(t) <= 0.1 * in.facetDistance;
+    // materials, the pair is not the leading one), the tet may still go when it is thinner than
+    // the facet distance: its faces lie that close to the interface faces they replace.
+    const bool sliver = m.thickness(t) <= in.facetDistance;
     bool near = true;
     for (int k = 0; k < 4 && near; ++k) {
       const int l = m.labels[size_t(nb[k])];

@@ -262,9 +262,64 @@ bool flatPatch(const Editor& m, int32_t v, double tolerance, Vec3& normal) {
 /// Share of a material's volume that peeling may remove in all.
 constexpr double kPeelBudget = 4e-3;
 
+/// True when a face (other than of tet t) on the outer boundary holds both u and v.
+bool outerEdge(const Editor& m, uint32_t t, int32_t u, int32_t v) {
+  for (uint32_t s : m.around[size_t(u)]) {
+    if (s == t || !m.has(s, v)) continue;
+    for (int k = 0; k < 4; ++k) {
+      const int32_t w = m.tets[s][size_t(k)];
+      if (w == u || w == v) continue;
+      const auto f = m.face(s, k);
+      if (m.across(s, f[0], f[1], f[2]) < 0) return true;
+    }
+  }
+  return false;
+}
+
+/// True when the three vertices of f lie on one plane of the volume's box.
+bool onBoxPlane(const Editor& m, const OptimizeInterfaces& in, const std::array<int32_t, 3>& f) {
+  return (boxPlanes(in, m.pts[size_t(f[0])]) & boxPlanes(in, m.pts[size_t(f[1])]) &
+          boxPlanes(in, m.pts[size_t(f[2])])) != 0;
+}
+
+/// The facet-distance rule of peeling (Optimize.h): t's outer faces are not on the box, its other
+/// faces, which become outer faces of the tets behind them, lie within the facet distance of
+/// those tets' interface with the background, and the outer boundary stays a manifold (the edge
+/// or vertex that comes to the surface is not on it already). nb: the tet across each face.
+bool peelKeepsFacetDistance(const Editor& m, uint32_t t, const int64_t nb[4], int outer,
+                            const OptimizeInterfaces& in) {
+  if (!in.enabled() || outer == 0 || outer == 4 || !(m.thickness(t) <= 2 * in.facetDistance))
+    return false;
+  const auto& T = m.tets[t];
+  std::vector<int32_t> up;  // the vertices opposite t's outer faces
+  for (int k = 0; k < 4; ++k) {
+    const auto f = m.face(t, k);
+    if (nb[k] < 0) {
+      if (onBoxPlane(m, in, f)) return false;
+      up.push_back(T[size_t(k)]);
+      continue;
+    }
+    const double d = faceDistance(m, in, f, 0, m.labels[size_t(nb[k])]);
+    if (d < 0 || d > in.facetDistance) return false;
+  }
+  if (outer == 2 && outerEdge(m, t, up[0], up[1])) return false;
+  if (outer == 1) {  // the vertex opposite the outer face must be inside the mesh
+    int32_t inner = -1;
+    for (int k = 0; k < 4; ++k)
+      if (nb[k] < 0) inner = T[size_t(k)];
+    for (uint32_t s : m.around[size_t(inner)])
+      for (int k = 0; k < 4; ++k) {
+        if (s == t || m.tets[s][size_t(k)] == inner) continue;
+        const auto f = m.face(s, k);
+        if (m.across(s, f[0], f[1], f[2]) < 0) return false;
+      }
+  }
+  return true;
+}
+
 /// Removes a flat tet with a face on the outer boundary (see Optimize.h); the tets across its
 /// other faces (now on the outer boundary) go to `fresh`.
-bool peel(Editor& m, uint32_t t, double tolerance, double capTolerance,
+bool peel(Editor& m, uint32_t t, double tolerance, const OptimizeInterfaces& in,
           std::vector<uint32_t>& fresh) {
   const size_t label = size_t(m.labels[t]);
   if (tolerance <= 0 || m.perLabel[label] <= 1) return false;
@@ -275,9 +330,12 @@ bool peel(Editor& m, uint32_t t, double tolerance, double capTolerance,
     nb[k] = m.across(t, f[0], f[1], f[2]);
     outer += nb[k] < 0;
   }
-  // A cap (three or four outer faces) may be as thick as capTolerance: removing it replaces
-  // its outer faces by the one below them.
-  if (outer == 0 || !(m.thickness(t) <= (outer >= 3 ? std::max(tolerance, capTolerance) : tolerance)))
+  if (outer == 0) return false;
+  // A cap (three or four outer faces) may be as thick as the facet distance: removing it
+  // replaces its outer faces by the one below them.
+  const double capTolerance = in.enabled() ? in.facetDistance : 0.0;
+  if (!(m.thickness(t) <= (outer >= 3 ? std::max(tolerance, capTolerance) : tolerance)) &&
+      !peelKeepsFacetDistance(m, t, nb, outer, in))
     return false;
   const double v = m.volume(t);
   if (m.peeledVolume[label] + v > kPeelBudget * m.startVolume[label]) return false;
@@ -365,7 +423,7 @@ bool moveVertex(Editor& m, int32_t v, const OptimizeParameters& params,
     int kind = 0;
     if (params.moveInterfaces && interfaces.enabled() &&
         smoothInterfaceVertex(m, v, interfaces, kind)) {
-      ++(kind == 3 ? r.tripleLineVertices : r.interfaceVertices);
+      ++(kind == 4 ? r.junctionVertices : kind == 3 ? r.tripleLineVertices : r.interfaceVertices);
       return true;
     }
     Vec3 normal;
@@ -460,8 +518,7 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
       if (!m.alive[t] || m.quality(t) >= params.targetMinDihedral) continue;
       fresh.clear();
       bool changed = false;
-      if (peel(m, t, params.peelDistance * params.voxelSize,
-               interfaces.enabled() ? interfaces.facetDistance : 0.0, fresh)) {
+      if (peel(m, t, params.peelDistance * params.voxelSize, interfaces, fresh)) {
         ++r.peeledTets;
         changed = true;
       }
@@ -649,6 +706,7 @@ ReportCounts reportCounts(const OptimizeResult& r) {
           {"optimize_smoothed_vertices", double(r.smoothedVertices)},
           {"optimize_interface_vertex_moves", double(r.interfaceVertices)},
           {"optimize_triple_line_vertex_moves", double(r.tripleLineVertices)},
+          {"optimize_junction_vertex_moves", double(r.junctionVertices)},
           {"optimize_interface_flips", double(r.interfaceFlips)},
           {"optimize_peeled_tets", double(r.peeledTets)},
           {"optimize_relabelled_tets", double(r.relabelledTets)},

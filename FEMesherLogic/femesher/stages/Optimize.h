@@ -127,6 +127,7 @@ struct OptimizeResult {
   size_t smoothedVertices = 0;  ///< interior (and flat outer-patch) vertex moves
   size_t interfaceVertices = 0;   ///< interface vertex moves (two materials)
   size_t tripleLineVertices = 0;  ///< triple-line vertex moves
+  size_t junctionVertices = 0;    ///< moves of junction points (four or more materials)
   size_t interfaceFlips = 0;      ///< interface edge flips
   size_t peeledTets = 0;        ///< flat boundary tets removed
   size_t relabelledTets = 0;    ///< flat interface tets given to the neighbouring material

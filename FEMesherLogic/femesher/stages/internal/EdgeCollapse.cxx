@@ -96,16 +96,6 @@ bool linkCondition(const Editor& m, int32_t u, int32_t v, int32_t label) {
 
 bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, const OptimizeInterfaces& in,
                        std::vector<uint32_t>& fresh) {
-  // The box planes (bit 2a: low side of axis a, 2a + 1: high side) a point lies on.
-  auto boxPlanes = [&](const Vec3& p) {
-    int mask = 0;
-    if (in.hasBox)
-      for (int a = 0; a < 3; ++a) {
-        if (std::fabs(p[size_t(a)] - in.boxLo[size_t(a)]) <= in.boxTolerance) mask |= 1 << (2 * a);
-        if (std::fabs(p[size_t(a)] - in.boxHi[size_t(a)]) <= in.boxTolerance) mask |= 2 << (2 * a);
-      }
-    return mask;
-  };
   const auto T = m.tets[t];
   int bi = -1, bj = -1;
   double best = maxLength;
@@ -142,8 +132,8 @@ bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, const OptimizeIn
     const bool goneOuter = materialsAndOuter(m.around[size_t(gone)], gone, -1, goneMats);
     if (edgeMats != goneMats || (goneOuter && !edgeOuter)) continue;
     // A vertex on the volume's box keeps every box plane it is on: the box stays exact.
-    const int goneBox = boxPlanes(m.pts[size_t(gone)]);
-    if ((goneBox & boxPlanes(m.pts[size_t(keep)])) != goneBox) continue;
+    const int goneBox = boxPlanes(in, m.pts[size_t(gone)]);
+    if ((goneBox & boxPlanes(in, m.pts[size_t(keep)])) != goneBox) continue;
     if (!linkCondition(m, keep, gone, -1)) continue;
     bool ok = true;
     for (int32_t label : goneMats) ok = ok && linkCondition(m, keep, gone, label);

@@ -12,6 +12,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <unordered_map>
 #include <vector>
 
 namespace femesher {
@@ -21,6 +22,18 @@ constexpr double kEps = 1e-6;  // degrees: smallest improvement that counts
 /// Share of a material's volume that interface moves, relabelling and edge collapses may add or
 /// take in all (Editor::movedVolume).
 constexpr double kVolumeBudget = 1e-3;
+
+/// The planes of the volume's box (bit 2a: low side of axis a, 2a + 1: high side) point p lies on
+/// (within in.boxTolerance); 0 when `in` knows no box.
+inline int boxPlanes(const OptimizeInterfaces& in, const Vec3& p) {
+  int mask = 0;
+  if (in.hasBox)
+    for (int a = 0; a < 3; ++a) {
+      if (std::fabs(p[size_t(a)] - in.boxLo[size_t(a)]) <= in.boxTolerance) mask |= 1 << (2 * a);
+      if (std::fabs(p[size_t(a)] - in.boxHi[size_t(a)]) <= in.boxTolerance) mask |= 2 << (2 * a);
+    }
+  return mask;
+}
 
 /// Mutable tet mesh with vertex -> tet incidence; faces are found by intersecting incidences.
 class Editor {
@@ -50,6 +63,8 @@ class Editor {
   /// Per material: volume at the start, the net volume interface moves and relabelling added so
   /// far, and the volume peeling removed (mm^3).
   std::vector<double> startVolume, movedVolume, peeledVolume;
+  /// Where each junction point that moved started (junction points stay near it).
+  std::unordered_map<int32_t, Vec3> junctionStart;
 
   double volume(uint32_t t) const { return volume(tets[t]); }
   /// Signed volume of the tet T (positive when positively oriented).
@@ -209,8 +224,14 @@ bool relabelFlatTet(Editor& m, uint32_t t, const OptimizeInterfaces& interfaces,
 bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, const OptimizeInterfaces& interfaces,
                        std::vector<uint32_t>& fresh);
 
-/// Moves an interface or triple-line vertex along its interface (InterfaceSmoothing.h); false
-/// when v is of another class or no move helps. `kind` gets 2 (interface) or 3 (triple line).
+/// Distance (mm) from the centroid of triangle `f` to the smooth interface of materials a < b
+/// (0: the background); -1 when the projection fails (InterfaceSmoothing.cxx).
+double faceDistance(const Editor& m, const OptimizeInterfaces& interfaces,
+                    const std::array<int32_t, 3>& f, int a, int b);
+
+/// Moves an interface or triple-line vertex along its interface, or a junction point within a
+/// quarter of the facet distance (InterfaceSmoothing.h); false when v is interior or on the box,
+/// or no move helps. `kind` gets 2 (interface), 3 (triple line) or 4 (junction point).
 bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& interfaces, int& kind);
 
 }  // namespace optimize_detail
