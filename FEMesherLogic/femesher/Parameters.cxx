@@ -150,7 +150,8 @@ const std::vector<Binding>& bindings() {
          "removed when it is thinner than this (voxels of the smallest spacing; at most 0.4 % of "
          "a material's volume in all): the outer surface moves by at most that much. A flat tet "
          "between materials that is this thin joins the material holding most of its faces. "
-         "0 = never.", true},
+         "A thicker tet with a face on the outer boundary (not the volume box) is removed too when "
+         "the faces it uncovers lie within facet_distance of the smooth boundary. 0 = never.", true},
         [](MeshingParameters& p, double x) { p.optimize.peelDistance = x; },
         [](const MeshingParameters& p) { return p.optimize.peelDistance; });
     add({"optimize_vertex_insertion", "bool", "", "", 0, 1, "Vertex insertion",

@@ -36,10 +36,10 @@ struct Case {
   int64_t minVoxels;
   double minDice = 0.85;  ///< voxel-centre agreement, for labels of >= 1,000 voxels
   /// Regression floor for the worst tet's smallest dihedral angle (degrees; issue 12). Measured
-  /// 2026-11-24 on the written meshes (Testing/Benchmarks/judge_real_volumes.py) after the
-  /// volume-preserving indicators and the short-edge collapse, floors a little below: knee 5.55,
-  /// phantom 10.1, mickey 10.7, spheres_argmax 13.7, example_seg 5.57, frogtissue 4.37,
-  /// example_seg_dicom 5.26, digimouse 4.08, colin27 1.47.
+  /// 2026-11-24 on the written meshes (Testing/Benchmarks/judge_real_volumes.py) after peeling
+  /// by the facet distance and the junction-point and box-trace moves, floors a little below:
+  /// knee 6.04, phantom 10.6, mickey 12.2, spheres_argmax 14.4, example_seg 5.57, frogtissue
+  /// 4.37, example_seg_dicom 5.26, digimouse 5.78, colin27 1.47.
   double minWorstAngle = 0;
 };
 
@@ -128,13 +128,13 @@ TEST_P(RealData, MeshesWithAllLabelsConformalAndFaithful) {
 INSTANTIATE_TEST_SUITE_P(
     SharedData, RealData,
     ::testing::Values(Case{"420.nrrd", 1}, Case{"40420.nrrd", 1}, Case{"12323.nrrd", 1},
-                      Case{"20012323.nrrd", 1}, Case{"mickey.nrrd", 10, 0.90, 10},
-                      Case{"spheres_argmax.nrrd", 10, 0.90, 13},
-                      Case{"colin27_v3.nrrd", 10, 0.90, 1.2}, Case{"digimouse.nrrd", 10, 0.85, 3.5},
+                      Case{"20012323.nrrd", 1}, Case{"mickey.nrrd", 10, 0.90, 12},
+                      Case{"spheres_argmax.nrrd", 10, 0.90, 14},
+                      Case{"colin27_v3.nrrd", 10, 0.90, 1.4}, Case{"digimouse.nrrd", 10, 0.85, 5.5},
                       Case{"frogtissue.nrrd", 10, 0.85, 4},
                       Case{"example_seg.nii.gz", 10, 0.85, 5},
                       Case{"example_seg_dicom.nii.gz", 10, 0.85, 5},
-                      Case{"9135902_00m_WB01.nii.gz", 10, 0.90, 5}),
+                      Case{"9135902_00m_WB01.nii.gz", 10, 0.90, 5.9}),
     [](const ::testing::TestParamInfo<Case>& info) {
       std::string n = info.param.file;
       for (auto& ch : n)
@@ -144,7 +144,7 @@ INSTANTIATE_TEST_SUITE_P(
 
 TEST(RealDataPhantom, BuiltInPhantomMeshes) {
   const LabelVolume v = makePhantom();
-  checkVolume(v, MeshingParameters{}, "phantom", 0.90, nullptr, kMinVolumeDice, 9.5);
+  checkVolume(v, MeshingParameters{}, "phantom", 0.90, nullptr, kMinVolumeDice, 10.3);
 }
 
 // The local Delaunay surface mesher (surface_mesher=ldt) on real data: no hole left, the LDT

@@ -23,15 +23,21 @@
 ///    material's volume in all). That flips two nearly coplanar boundary triangles, drops a flat
 ///    cap, fin or isolated tet, and moves the outer boundary by at most `peelDistance`. A cap
 ///    (three or four outer faces) may be as thick as the interfaces' facet distance (when given):
-///    its outer faces give way to the one below them.
+///    its outer faces give way to the one below them. With interfaces, a thicker tet with one to
+///    three outer faces, none on the volume's box, goes too when every face it uncovers has its
+///    centroid within the facet distance of the interface of the tet behind it with the
+///    background, and the outer boundary stays a manifold (the edge or vertex it uncovers is not
+///    on the boundary already).
 ///  - smoothing of interface vertices (given the smooth interfaces, OptimizeInterfaces, see
 ///    InterfaceSmoothing.h): a vertex with exactly two materials around (outside the mesh, away
 ///    from the volume's box, counting as background 0) moves in the tangent plane of its
 ///    interface triangles and is projected back onto f_a = f_b; a vertex with three materials
 ///    around moves along its triple line and is projected onto it. Both materials' tets move
 ///    with it, so the mesh stays conformal. A move is kept only when it raises the worst tet of
-///    the star (see InterfaceSmoothing.h for the distance and volume bounds). Vertices with four
-///    or more materials around, and vertices of an interface on the volume's box, stay;
+///    the star (see InterfaceSmoothing.h for the distance and volume bounds). A vertex with four
+///    or more materials around (a junction point) moves freely within a quarter of the facet
+///    distance of where it started; an interface vertex on one plane of the volume's box moves
+///    along the interface's trace on that plane; box edges and corners stay;
 ///  - relabelling: a flat tet (thinner than `peelDistance`) with no outer face and more faces on
 ///    one other material than on its own joins that material (the new interface triangles within
 ///    `facet_distance`, within the volume budget of interface moves); it then has fewer
