@@ -5,7 +5,7 @@ through `femesher mesh`, each written mesh judged by an independent decoder: eve
 or fails with a clear error naming the file (an exit code of the README's table) and writes
 nothing; no written mesh has a tet of zero or negative volume; a run whose report says "ok" has
 no tet below min_dihedral_warning, one that says "poor_elements" has one, and the CLI's
-"Elements:" line says the same status; at least 25 of the 30 reach 5 degrees."""
+"Elements:" line says the same status; at least 27 of the 30 reach 5 degrees."""
 import os
 import sys
 import tempfile
@@ -16,7 +16,7 @@ import random_volumes  # noqa: E402
 CLI = os.environ["FEMESHER_CLI"]
 TMP = tempfile.mkdtemp(prefix="random_volumes_", dir=os.environ.get("FEMESHER_TMP"))
 COUNT, SEED, MAX_SIZE = 30, 12, 22
-FLOOR = 25
+FLOOR = 27
 # Exit codes of femesher (README, "Exit codes"): the ones a meshing run may end with.
 ERRORS = {10: "meshing-failed", 13: "internal"}
 
@@ -68,7 +68,9 @@ for r in rows + [extra]:
     judge(r)
 # Regression floor for the optimiser (issue 12): the share of the 30 meshes whose worst tet
 # reaches min_dihedral_warning (5 degrees). Measured 2026-11-24: 28 of 30, then 27 after the
-# volume-preserving indicators (while 300 volumes went 239 -> 260); the floor leaves room for shifts.
+# volume-preserving indicators (while 300 volumes went 239 -> 260), then 29 after peeling by the
+# facet distance and the peeling budget kept for the flattest tets (300 volumes: 273); the floor
+# leaves room for shifts.
 reached = sum(1 for r in rows if r["exit"] == 0 and r["worst"] >= r["warning_deg"] - 1e-6)
 print("%d of %d meshes reach a worst angle of 5 degrees" % (reached, len(rows)))
 check(reached >= FLOOR, "only %d of %d meshes reach 5 degrees (floor %d)" % (reached, len(rows), FLOOR))

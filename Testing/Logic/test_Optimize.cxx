@@ -70,10 +70,10 @@ TEST(Optimize, MinDihedralOfRegularFlatAndInvertedTets) {
 
 namespace {
 
-/// Adds a regular tet of edge 40 * sqrt(2) centred at (x, x, x), its own piece, of `label`.
+/// Adds a regular tet of edge 2 L sqrt(2) (volume 8 L^3 / 3) centred at (x, x, x), its own piece,
+/// of `label`.
 void addBulkTet(std::vector<Vec3>& p, Tets& t, std::vector<int32_t>& labels, double x,
-                int32_t label) {
-  const double L = 20;
+                int32_t label, double L = 20) {
   const int32_t first = int32_t(p.size());
   for (const Vec3& q : {Vec3{x + L, x + L, x + L}, Vec3{x + L, x - L, x - L},
                         Vec3{x - L, x + L, x - L}, Vec3{x - L, x - L, x + L}})
@@ -150,6 +150,34 @@ TEST(Optimize, PeelingStaysWithinTheMaterialsVolumeBudget) {
   const auto r = optimizeTetMesh(m.p, m.t, m.labels, op, ctx);
   EXPECT_EQ(r.peeledTets, 0u);
   EXPECT_NEAR(labelVolumes(m.p, m.t, m.labels).at(1), before, 1e-12) << "flips keep the volume";
+}
+
+TEST(Optimize, KeepsAQuarterOfThePeelingBudgetForTetsBelowTheWarningAngle) {
+  // The cap is 0.35 % of its material's volume: within the peeling budget (0.4 %), beyond the
+  // three quarters of it that tets at or above min_dihedral_warning may use. The corner tet below
+  // it is another material, so no flip can remove it instead.
+  for (const double warning : {0.0, 5.0, 40.0}) {
+    CornerWithCap m(0.1, false);
+    m.labels[0] = 2;
+    const double cap = std::sqrt(3.0) / 2 * 0.1 / 3;
+    const double rest = cap / 0.0035 - cap;
+    addBulkTet(m.p, m.t, m.labels, 100, 1, std::cbrt(3 * rest / 8));
+    addBulkTet(m.p, m.t, m.labels, -100, 2);
+    const double capAngle = tetMinDihedral(m.p[1], m.p[2], m.p[3], m.p[4]) > 0
+                                ? tetMinDihedral(m.p[1], m.p[2], m.p[3], m.p[4])
+                                : tetMinDihedral(m.p[2], m.p[1], m.p[3], m.p[4]);
+    ASSERT_GT(capAngle, 5);
+    ASSERT_LT(capAngle, 30);
+    RunContext ctx;
+    OptimizeParameters op;
+    op.peelDistance = 1;
+    op.targetMinDihedral = 30;
+    op.minFragmentVoxels = 0;
+    op.minDihedralWarning = warning;
+    const auto r = optimizeTetMesh(m.p, m.t, m.labels, op, ctx);
+    // No warning (0): one budget for all; the cap below the warning (40): the whole budget.
+    EXPECT_EQ(r.peeledTets, warning == 5.0 ? 0u : 1u) << "warning " << warning;
+  }
 }
 
 TEST(Optimize, RemovesFloatingFragmentsButNeverAMaterialsLastPiece) {
@@ -306,6 +334,7 @@ TEST(Optimize, PeelsAThickerBoundarySliverWhenTheSurfaceBelowIsWithinTheFacetDis
     op.minFragmentVoxels = 0;
     op.moveInterfaces = false;
     op.insertVertices = false;
+    op.minDihedralWarning = 20;  // below the warning: peeling is tried before the flips
     const double volumeBefore = labelVolumes(m.p, m.t, m.labels).at(1);
     const auto r = optimizeTetMesh(m.p, m.t, m.labels, op, in, ctx);
     if (facetDistance > 0.05 / 3) {

@@ -39,7 +39,7 @@ struct Case {
   /// 2026-11-24 on the written meshes (Testing/Benchmarks/judge_real_volumes.py) after peeling
   /// by the facet distance and the junction-point and box-trace moves, floors a little below:
   /// knee 6.04, phantom 10.6, mickey 12.2, spheres_argmax 14.4, example_seg 5.57, frogtissue
-  /// 4.37, example_seg_dicom 5.26, digimouse 5.78, colin27 1.47.
+  /// 6.83, example_seg_dicom 5.26, digimouse 5.78, colin27 1.47.
   double minWorstAngle = 0;
 };
 
@@ -131,7 +131,7 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"20012323.nrrd", 1}, Case{"mickey.nrrd", 10, 0.90, 12},
                       Case{"spheres_argmax.nrrd", 10, 0.90, 14},
                       Case{"colin27_v3.nrrd", 10, 0.90, 1.4}, Case{"digimouse.nrrd", 10, 0.85, 5.5},
-                      Case{"frogtissue.nrrd", 10, 0.85, 4},
+                      Case{"frogtissue.nrrd", 10, 0.85, 6.5},
                       Case{"example_seg.nii.gz", 10, 0.85, 5},
                       Case{"example_seg_dicom.nii.gz", 10, 0.85, 5},
                       Case{"9135902_00m_WB01.nii.gz", 10, 0.90, 5.9}),

@@ -319,7 +319,7 @@ bool peelKeepsFacetDistance(const Editor& m, uint32_t t, const int64_t nb[4], in
 
 /// Removes a flat tet with a face on the outer boundary (see Optimize.h); the tets across its
 /// other faces (now on the outer boundary) go to `fresh`.
-bool peel(Editor& m, uint32_t t, double tolerance, const OptimizeInterfaces& in,
+bool peel(Editor& m, uint32_t t, double tolerance, double share, const OptimizeInterfaces& in,
           std::vector<uint32_t>& fresh) {
   const size_t label = size_t(m.labels[t]);
   if (tolerance <= 0 || m.perLabel[label] <= 1) return false;
@@ -338,7 +338,7 @@ bool peel(Editor& m, uint32_t t, double tolerance, const OptimizeInterfaces& in,
       !peelKeepsFacetDistance(m, t, nb, outer, in))
     return false;
   const double v = m.volume(t);
-  if (m.peeledVolume[label] + v > kPeelBudget * m.startVolume[label]) return false;
+  if (m.peeledVolume[label] + v > share * kPeelBudget * m.startVolume[label]) return false;
   m.peeledVolume[label] += v;
   m.kill(t);
   for (int64_t s : nb)
@@ -518,10 +518,16 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
       if (!m.alive[t] || m.quality(t) >= params.targetMinDihedral) continue;
       fresh.clear();
       bool changed = false;
-      if (peel(m, t, params.peelDistance * params.voxelSize, interfaces, fresh)) {
-        ++r.peeledTets;
-        changed = true;
-      }
+      // Peeling costs volume: a tet at or above the warning angle tries the flips first.
+      const bool flattest = params.minDihedralWarning <= 0 || m.quality(t) < params.minDihedralWarning;
+      auto tryPeel = [&] {
+        if (!changed && peel(m, t, params.peelDistance * params.voxelSize, flattest ? 1.0 : 0.75,
+                             interfaces, fresh)) {
+          ++r.peeledTets;
+          changed = true;
+        }
+      };
+      if (flattest) tryPeel();
       if (!changed) {  // the best of the six edge removals is not searched: first that helps
         const auto T = m.tets[t];
         for (int i = 0; i < 4 && !changed; ++i)
@@ -536,6 +542,7 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
           ++r.faceFlips;
           changed = true;
         }
+      if (!flattest) tryPeel();
       if (!changed && params.moveInterfaces && interfaces.enabled() &&
           flipInterfaceEdge(m, t, interfaces, fresh)) {
         ++r.interfaceFlips;
