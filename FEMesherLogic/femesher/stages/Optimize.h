@@ -151,6 +151,7 @@ struct OptimizeResult {
 /// Report figures: optimize_tets_below_target_before/after, optimize_tets_below_5deg_before/after,
 /// optimize_min_dihedral_before/after, optimize_edge_removals, optimize_face_flips,
 /// optimize_smoothed_vertices, optimize_interface_vertex_moves, optimize_triple_line_vertex_moves,
+/// optimize_junction_vertex_moves,
 /// optimize_interface_flips, optimize_peeled_tets, optimize_relabelled_tets,
 /// optimize_inserted_vertices, optimize_collapsed_edges,
 /// optimize_fragments_removed, optimize_fragment_tets, optimize_fragment_volume_mm3, optimize_passes.
