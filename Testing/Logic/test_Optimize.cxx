@@ -309,6 +309,26 @@ struct SliverOnPlane {
         std::swap(T[0], T[1]);
     addBulkTet(p, t, labels, 100, 1);
   }
+  /// The smooth boundary: the plane z = 0, the interface of the background (0) alone.
+  static OptimizeInterfaces boundary(double facetDistance) {
+    OptimizeInterfaces in;
+    in.projectOntoInterface = [](int a, int, Vec3& q) {
+      q[2] = 0;
+      return a == 0;
+    };
+    in.facetDistance = facetDistance;
+    return in;
+  }
+  /// Peeling by the facet distance alone: a tiny peel distance, no interface moves or insertion.
+  static OptimizeParameters peeling() {
+    OptimizeParameters op;
+    op.targetMinDihedral = 20;
+    op.peelDistance = 0.001;
+    op.minFragmentVoxels = 0;
+    op.moveInterfaces = false;
+    op.insertVertices = false;
+    return op;
+  }
 };
 
 }  // namespace
@@ -321,19 +341,9 @@ TEST(Optimize, PeelsAThickerBoundarySliverWhenTheSurfaceBelowIsWithinTheFacetDis
     SliverOnPlane m(0.05);
     ASSERT_GT(minOver(m.p, m.t), 0);
     ASSERT_LT(minOver(m.p, m.t), 10);
-    OptimizeInterfaces in;
-    in.projectOntoInterface = [](int a, int, Vec3& q) {
-      q[2] = 0;
-      return a == 0;
-    };
-    in.facetDistance = facetDistance;
+    const OptimizeInterfaces in = SliverOnPlane::boundary(facetDistance);
     RunContext ctx;
-    OptimizeParameters op;
-    op.targetMinDihedral = 20;
-    op.peelDistance = 0.001;
-    op.minFragmentVoxels = 0;
-    op.moveInterfaces = false;
-    op.insertVertices = false;
+    OptimizeParameters op = SliverOnPlane::peeling();
     op.minDihedralWarning = 20;  // below the warning: peeling is tried before the flips
     const double volumeBefore = labelVolumes(m.p, m.t, m.labels).at(1);
     const auto r = optimizeTetMesh(m.p, m.t, m.labels, op, in, ctx);
@@ -356,20 +366,9 @@ TEST(Optimize, NeverPeelsABoundarySliverWhenThatWouldPinchTheBoundary) {
   m.p.push_back({0.5, 0.5, -1.2});
   for (int32_t& v : m.t[2])
     if (v == 4) v = int32_t(m.p.size() - 1);
-  OptimizeInterfaces in;
-  in.projectOntoInterface = [](int a, int, Vec3& q) {
-    q[2] = 0;
-    return a == 0;
-  };
-  in.facetDistance = 1;
   RunContext ctx;
-  OptimizeParameters op;
-  op.targetMinDihedral = 20;
-  op.peelDistance = 0.001;
-  op.minFragmentVoxels = 0;
-  op.moveInterfaces = false;
-  op.insertVertices = false;
-  const auto r = optimizeTetMesh(m.p, m.t, m.labels, op, in, ctx);
+  const auto r = optimizeTetMesh(m.p, m.t, m.labels, SliverOnPlane::peeling(), SliverOnPlane::boundary(1),
+                                 ctx);
   EXPECT_EQ(r.peeledTets, 0u);
   EXPECT_EQ(m.t.size(), 4u);
 }
