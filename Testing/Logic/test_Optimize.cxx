@@ -692,3 +692,51 @@ TEST(Optimize, CollapsesAShortInterfaceEdgeAndKeepsTheInterface) {
   op.collapseEdges = false;
   EXPECT_EQ(optimizeTetMesh(off.p, off.t, off.labels, op, in, ctx).collapsedEdges, 0u);
 }
+
+TEST(Optimize, FlipsAnInterfaceEdgeWhenTheNewTrianglesStayWithinTheFacetDistance) {
+  // A sliver (A, B, C, D) of material 1 lies on the plane interface z = 0 with material 2: its
+  // lower faces ABC, ACD (edge AC on the plane, B and D `lift` above it) are on two tets of
+  // material 2 reaching down to E; its upper faces are on two tets of material 1 whose apexes
+  // lean outwards, so that no flip inside material 1 reaches the sliver. Giving the sliver to
+  // material 2 and removing AC makes ABD and BCD the interface: their centroids are 2/3 lift
+  // above the plane, which the facet distance must allow (the whole bound, not a quarter of it).
+  const double lift = 0.1;
+  for (const double facetDistance : {0.2, 0.05}) {
+    std::vector<Vec3> p = {{0, 0, 0}, {1, 0, lift}, {1, 1, 0},    {0, 1, lift},
+                           {0.5, 0.5, -1}, {-0.5, -0.5, 0.5}, {1.5, 1.5, 0.5}};
+    Tets t = {{0, 1, 2, 3}, {0, 2, 1, 4}, {0, 3, 2, 4}, {0, 1, 3, 5}, {1, 2, 3, 6}};
+    std::vector<int32_t> labels = {1, 2, 2, 1, 1};
+    for (auto& T : t)
+      if (tetMinDihedral(p[size_t(T[0])], p[size_t(T[1])], p[size_t(T[2])], p[size_t(T[3])]) < 0)
+        std::swap(T[0], T[1]);
+    addBulkTet(p, t, labels, 100, 1);
+    addBulkTet(p, t, labels, -100, 2);
+    OptimizeInterfaces in;
+    in.projectOntoInterface = [](int a, int b, Vec3& q) {
+      q[2] = 0;
+      return a == 1 && b == 2;
+    };
+    in.facetDistance = facetDistance;
+    OptimizeParameters op;
+    op.targetMinDihedral = 20;
+    op.peelDistance = 0.001;
+    op.minFragmentVoxels = 0;
+    op.insertVertices = false;
+    op.collapseEdges = false;
+    const double before = minOver(p, t);
+    ASSERT_NEAR(before, 11.36, 0.01);
+    const auto volumeBefore = labelVolumes(p, t, labels);
+    RunContext ctx;
+    const auto r = optimizeTetMesh(p, t, labels, op, in, ctx);
+    const auto volumeAfter = labelVolumes(p, t, labels);
+    if (facetDistance < 2.0 / 3 * lift) {  // the new triangles would be too far: nothing changes
+      EXPECT_EQ(r.interfaceFlips, 0u);
+      EXPECT_DOUBLE_EQ(minOver(p, t), before);
+      continue;
+    }
+    EXPECT_EQ(r.interfaceFlips, 1u);
+    EXPECT_GT(minOver(p, t), 20) << "the sliver is gone";
+    EXPECT_NEAR(volumeAfter.at(1), volumeBefore.at(1) - lift / 3, 1e-9);
+    EXPECT_NEAR(volumeAfter.at(1) + volumeAfter.at(2), volumeBefore.at(1) + volumeBefore.at(2), 1e-9);
+  }
+}

@@ -37,8 +37,9 @@ struct Case {
   double minDice = 0.85;  ///< voxel-centre agreement, for labels of >= 1,000 voxels
   /// Regression floor for the worst tet's smallest dihedral angle (degrees; issue 12). Measured
   /// 2026-11-24 on the written meshes (Testing/Benchmarks/judge_real_volumes.py) after peeling
-  /// by the facet distance and the junction-point and box-trace moves, floors a little below:
-  /// knee 6.04, phantom 10.6, mickey 12.2, spheres_argmax 14.4, example_seg 5.57, frogtissue
+  /// by the facet distance and the junction-point and box-trace moves (mickey and spheres_argmax
+  /// after interface flips within the whole facet distance), floors a little below:
+  /// knee 6.04, phantom 10.6, mickey 14.2, spheres_argmax 15.0, example_seg 5.57, frogtissue
   /// 6.83, example_seg_dicom 5.26, digimouse 5.78, colin27 1.47.
   double minWorstAngle = 0;
 };
@@ -128,8 +129,8 @@ TEST_P(RealData, MeshesWithAllLabelsConformalAndFaithful) {
 INSTANTIATE_TEST_SUITE_P(
     SharedData, RealData,
     ::testing::Values(Case{"420.nrrd", 1}, Case{"40420.nrrd", 1}, Case{"12323.nrrd", 1},
-                      Case{"20012323.nrrd", 1}, Case{"mickey.nrrd", 10, 0.90, 12},
-                      Case{"spheres_argmax.nrrd", 10, 0.90, 14},
+                      Case{"20012323.nrrd", 1}, Case{"mickey.nrrd", 10, 0.90, 14},
+                      Case{"spheres_argmax.nrrd", 10, 0.90, 14.8},
                       Case{"colin27_v3.nrrd", 10, 0.90, 1.4}, Case{"digimouse.nrrd", 10, 0.85, 5.5},
                       Case{"frogtissue.nrrd", 10, 0.85, 6.5},
                       Case{"example_seg.nii.gz", 10, 0.85, 5},

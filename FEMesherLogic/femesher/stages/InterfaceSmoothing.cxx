@@ -282,7 +282,7 @@ bool flipInterfaceEdge(Editor& m, uint32_t t, const OptimizeInterfaces& in,
       for (int k = 0; k < 2 && near; ++k) {
         const InterfaceFace f{{ab[1 - k], T[size_t(i)], T[size_t(j)]}, lo, hi, {0, 0, 0}};
         const double d = centroidDistance(m, in, f);
-        near = d >= 0 && d <= kFacetShare * in.facetDistance;
+        near = d >= 0 && d <= in.facetDistance;
       }
       const double v = m.volume(t);
       if (!near || std::fabs(m.movedVolume[size_t(own)] - v) > kVolumeBudget * m.startVolume[size_t(own)] ||

@@ -48,7 +48,8 @@
 ///  - interface edge flips: a flat tet with two faces on the interface with one other material
 ///    (its other faces inside its own) joins that material when the edge it leaves inside it can
 ///    then be removed (the edge removal above): the two interface triangles on that edge become
-///    the tet's two other faces.
+///    the tet's two other faces, whose centroids must lie within the facet distance of the
+///    smooth interface (and the volume budget of interface moves holds).
 ///  - vertex insertion (insertVertices), when nothing above helps a tet: a new vertex replaces the
 ///    tet and its neighbours of the same material across unconstrained faces by a star of tets,
 ///    and moves to where the star's worst tet is best; kept only when that beats the old worst.
