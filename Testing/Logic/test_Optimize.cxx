@@ -70,6 +70,12 @@ TEST(Optimize, MinDihedralOfRegularFlatAndInvertedTets) {
 
 namespace {
 
+/// Swaps two vertices of T when it is not positively oriented in p.
+void orientPositively(const std::vector<Vec3>& p, std::array<int32_t, 4>& T) {
+  if (tetMinDihedral(p[size_t(T[0])], p[size_t(T[1])], p[size_t(T[2])], p[size_t(T[3])]) < 0)
+    std::swap(T[0], T[1]);
+}
+
 /// Adds a regular tet of edge 2 L sqrt(2) (volume 8 L^3 / 3) centred at (x, x, x), its own piece,
 /// of `label`.
 void addBulkTet(std::vector<Vec3>& p, Tets& t, std::vector<int32_t>& labels, double x,
@@ -79,8 +85,7 @@ void addBulkTet(std::vector<Vec3>& p, Tets& t, std::vector<int32_t>& labels, dou
                         Vec3{x - L, x + L, x - L}, Vec3{x - L, x - L, x + L}})
     p.push_back(q);
   std::array<int32_t, 4> T{first, first + 1, first + 2, first + 3};
-  if (tetMinDihedral(p[size_t(T[0])], p[size_t(T[1])], p[size_t(T[2])], p[size_t(T[3])]) < 0)
-    std::swap(T[0], T[1]);
+  orientPositively(p, T);
   t.push_back(T);
   labels.push_back(label);
 }
@@ -107,7 +112,7 @@ struct CornerWithCap {
     for (const auto& e : {std::array<int32_t, 2>{1, 2}, std::array<int32_t, 2>{2, 3},
                           std::array<int32_t, 2>{3, 1}}) {
       std::array<int32_t, 4> T{e[0], e[1], 4, apex};
-      if (tetMinDihedral(p[T[0]], p[T[1]], p[T[2]], p[T[3]]) < 0) std::swap(T[0], T[1]);
+      orientPositively(p, T);
       t.push_back(T);
       labels.push_back(label);
     }
@@ -190,7 +195,7 @@ TEST(Optimize, RemovesFloatingFragmentsButNeverAMaterialsLastPiece) {
     m.p.push_back(q);
   std::array<int32_t, 4> T{int32_t(first2), int32_t(first2 + 1), int32_t(first2 + 2),
                            int32_t(first2 + 3)};
-  if (tetMinDihedral(m.p[T[0]], m.p[T[1]], m.p[T[2]], m.p[T[3]]) < 0) std::swap(T[0], T[1]);
+  orientPositively(m.p, T);
   m.t.push_back(T);
   m.labels.push_back(2);
   RunContext ctx;
@@ -304,9 +309,7 @@ struct SliverOnPlane {
   std::vector<int32_t> labels = {1, 1, 1};
   explicit SliverOnPlane(double lift) {
     p[1][2] = p[3][2] = lift;
-    for (auto& T : t)
-      if (tetMinDihedral(p[size_t(T[0])], p[size_t(T[1])], p[size_t(T[2])], p[size_t(T[3])]) < 0)
-        std::swap(T[0], T[1]);
+    for (auto& T : t) orientPositively(p, T);
     addBulkTet(p, t, labels, 100, 1);
   }
   /// The smooth boundary: the plane z = 0, the interface of the background (0) alone.
@@ -520,7 +523,7 @@ struct PlaneInterfaceMesh {
               ++c[a[s]];
               T[size_t(s + 1)] = id(c[0], c[1], c[2]);
             }
-            if (tetMinDihedral(p[T[0]], p[T[1]], p[T[2]], p[T[3]]) < 0) std::swap(T[0], T[1]);
+            orientPositively(p, T);
             t.push_back(T);
             labels.push_back(2 * k < n ? 1 : 2);
           }
@@ -706,9 +709,7 @@ TEST(Optimize, FlipsAnInterfaceEdgeWhenTheNewTrianglesStayWithinTheFacetDistance
                            {0.5, 0.5, -1}, {-0.5, -0.5, 0.5}, {1.5, 1.5, 0.5}};
     Tets t = {{0, 1, 2, 3}, {0, 2, 1, 4}, {0, 3, 2, 4}, {0, 1, 3, 5}, {1, 2, 3, 6}};
     std::vector<int32_t> labels = {1, 2, 2, 1, 1};
-    for (auto& T : t)
-      if (tetMinDihedral(p[size_t(T[0])], p[size_t(T[1])], p[size_t(T[2])], p[size_t(T[3])]) < 0)
-        std::swap(T[0], T[1]);
+    for (auto& T : t) orientPositively(p, T);
     addBulkTet(p, t, labels, 100, 1);
     addBulkTet(p, t, labels, -100, 2);
     OptimizeInterfaces in;
