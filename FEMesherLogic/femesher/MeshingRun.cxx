@@ -228,6 +228,7 @@ void MeshingRun::optimize() {
   OptimizeParameters op = params_.optimize;
   op.voxelSize = state_.grid.minSpacing();
   op.voxelVolume = state_.grid.spacing[0] * state_.grid.spacing[1] * state_.grid.spacing[2];
+  if (state_.sizing) op.sizeAt = state_.sizing;
   VolumeMeshResult& vm = state_.volumeMesh;
   // The interfaces the mesh approximates, within the boundary stage's facet distance.
   const OptimizeInterfaces interfaces =

@@ -741,3 +741,90 @@ TEST(Optimize, FlipsAnInterfaceEdgeWhenTheNewTrianglesStayWithinTheFacetDistance
     EXPECT_NEAR(volumeAfter.at(1) + volumeAfter.at(2), volumeBefore.at(1) + volumeBefore.at(2), 1e-9);
   }
 }
+
+// Interior coarsening on a 6^3 lattice of cubes (six tets each; interior vertices shifted a
+// little) split by the plane z = 3 into two materials: interior vertices go, while every interface and outer triangle, every material's
+// volume and the mesh's conformity stay exactly as they were; no new edge is longer than
+// coarsenLongEdge × the size, and no tet falls below coarsenMinDihedral. A size below the
+// lattice's edges, or coarsening off, changes nothing.
+TEST(Optimize, CoarsensTheInteriorWithinTheSizeAndQualityBoundsAndKeepsEveryInterface) {
+  const int n = 6;
+  auto build = [n] {
+    PlaneInterfaceMesh m(n);
+    auto id = [n](int i, int j, int k) { return size_t(i + (n + 1) * (j + (n + 1) * k)); };
+    for (int j = 1; j < n; ++j)  // an undisturbed plane
+      for (int i = 1; i < n; ++i) m.p[id(i, j, n / 2)] = {double(i), double(j), n / 2.0};
+    // Interior vertices shifted a little (deterministically): in the exact lattice, every
+    // collapse onto a neighbour would leave flat tets, as faces of the star are coplanar with it.
+    for (int k = 1; k < n; ++k)
+      for (int j = 1; j < n; ++j)
+        for (int i = 1; i < n; ++i)
+          if (2 * k != n)
+            m.p[id(i, j, k)] = {i + 0.12 * std::sin(1.3 * i + 2.1 * j + 0.7 * k),
+                                j + 0.12 * std::cos(0.9 * i - 1.7 * j + 2.3 * k),
+                                k + 0.12 * std::sin(2.9 * i + 0.4 * j - 1.1 * k)};
+    return m;
+  };
+  // Triangles held by one tet (outer) or by two of different materials (interface), as sorted
+  // coordinates: they must not change.
+  auto constrainedFaces = [](const PlaneInterfaceMesh& m) {
+    std::set<std::vector<double>> out;
+    for (const auto& [f, held] : faceLabels(m.t, m.labels)) {
+      if (held.size() == 2 && held[0] == held[1]) continue;
+      std::vector<Vec3> v{m.p[size_t(f[0])], m.p[size_t(f[1])], m.p[size_t(f[2])]};
+      std::sort(v.begin(), v.end());
+      std::vector<double> key{double(held.size())};
+      for (const auto& x : v) key.insert(key.end(), x.begin(), x.end());
+      out.insert(key);
+    }
+    return out;
+  };
+  const PlaneInterfaceMesh start = build();
+  const double worst0 = minOver(start.p, start.t);
+  ASSERT_GT(worst0, 25) << "the lattice should be good";
+  OptimizeParameters op;
+  op.targetMinDihedral = 15;
+  op.coarsenMinDihedral = 20;
+  op.coarsenShortEdge = 1.3;
+  op.coarsenLongEdge = 1.5;
+  op.sizeAt = [](const Vec3&) { return 2.0; };
+  RunContext ctx;
+  PlaneInterfaceMesh mesh = build(), again = build();
+  const auto r = optimizeTetMesh(mesh.p, mesh.t, mesh.labels, op, ctx);
+  optimizeTetMesh(again.p, again.t, again.labels, op, ctx);
+  EXPECT_EQ(mesh.p, again.p) << "not deterministic";
+  EXPECT_EQ(mesh.t, again.t) << "not deterministic";
+  const size_t interior = size_t((n - 1) * (n - 1) * (n - 2));  // off the box and the plane
+  EXPECT_GT(r.coarsenedVertices, interior / 4) << "the lattice is dense for a size of 2";
+  EXPECT_LE(r.coarsenedVertices, interior);
+  EXPECT_EQ(mesh.p.size(), start.p.size() - r.coarsenedVertices);
+  EXPECT_LT(mesh.t.size(), start.t.size());
+  EXPECT_EQ(constrainedFaces(mesh), constrainedFaces(start)) << "an interface or outer face changed";
+  const auto v0 = labelVolumes(start.p, start.t, start.labels);
+  const auto v1 = labelVolumes(mesh.p, mesh.t, mesh.labels);
+  for (const auto& [label, v] : v0) EXPECT_NEAR(v1.at(label), v, 1e-9 * v) << label;
+  for (const auto& [f, held] : faceLabels(mesh.t, mesh.labels)) EXPECT_LE(held.size(), 2u);
+  EXPECT_GE(minOver(mesh.p, mesh.t), op.coarsenMinDihedral);
+  double longest = 0;
+  for (const auto& T : mesh.t)
+    for (int a = 0; a < 4; ++a)
+      for (int b = a + 1; b < 4; ++b)
+        longest = std::max(longest, norm(sub(mesh.p[size_t(T[size_t(a)])], mesh.p[size_t(T[size_t(b)])])));
+  EXPECT_LE(longest, op.coarsenLongEdge * 2.0 + 1e-9);
+  EXPECT_GT(longest, std::sqrt(3.0) + 0.1) << "coarsening should have made longer edges";
+  std::printf("[optimize] coarsening: %zu of %zu interior vertices removed, tets %zu -> %zu, "
+              "worst %.1f -> %.1f deg, longest edge %.2f\n",
+              r.coarsenedVertices, interior, start.t.size(), mesh.t.size(), worst0,
+              minOver(mesh.p, mesh.t), longest);
+  // A size at which the lattice's edges (1 and longer) are not short: nothing goes.
+  PlaneInterfaceMesh fine = build();
+  op.sizeAt = [](const Vec3&) { return 0.7; };
+  EXPECT_EQ(optimizeTetMesh(fine.p, fine.t, fine.labels, op, ctx).coarsenedVertices, 0u);
+  EXPECT_EQ(fine.t, start.t);
+  // Off.
+  PlaneInterfaceMesh off = build();
+  op.sizeAt = [](const Vec3&) { return 2.0; };
+  op.coarsenMinDihedral = 0;
+  EXPECT_EQ(optimizeTetMesh(off.p, off.t, off.labels, op, ctx).coarsenedVertices, 0u);
+  EXPECT_EQ(off.t, start.t);
+}

@@ -466,24 +466,29 @@ void eraseTets(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& t
     for (int32_t& v : T) v = newIndex[size_t(v)];
 }
 
-double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+double tetMaxDihedralCos(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
   const Vec3 ab = sub(b, a), ac = sub(c, a), ad = sub(d, a);
   const double vol = dot(cross(ab, ac), ad);
-  if (!(vol > 0)) return -1;
+  if (!(vol > 0)) return 2;
   // Outward face normals (unnormalised): opposite a, b, c, d.
   const Vec3 bc = sub(c, b), bd = sub(d, b);
   Vec3 n[4] = {cross(bd, bc), cross(ac, ad), cross(ad, ab), cross(ab, ac)};
   double len[4];
   for (int i = 0; i < 4; ++i) {
     len[i] = norm(n[i]);
-    if (!(len[i] > 0)) return -1;
+    if (!(len[i] > 0)) return 2;
   }
   // Dihedral angle at the edge shared by faces i and j: pi - angle(n_i, n_j).
   double maxCos = -1;
   for (int i = 0; i < 4; ++i)
     for (int j = i + 1; j < 4; ++j)
       maxCos = std::max(maxCos, -dot(n[i], n[j]) / (len[i] * len[j]));
-  return std::acos(std::clamp(maxCos, -1.0, 1.0)) * kRadToDeg;
+  return std::clamp(maxCos, -1.0, 1.0);
+}
+
+double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  const double c0 = tetMaxDihedralCos(a, b, c, d);
+  return c0 > 1 ? -1 : std::acos(c0) * kRadToDeg;
 }
 
 namespace {
@@ -595,6 +600,9 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
       round = round == Round::Inserting ? Round::Final : Round::Done;
     }
   }
+  // Coarsening comes last: it never lowers the worst tet of a star it changes, so the rounds'
+  // result stands, and it cannot take away the interior vertices the rounds needed.
+  r.coarsenedVertices = coarsenInterior(m, params);
   // Compact: alive tets, used points (order kept).
   std::vector<char> dead(tets.size());
   for (size_t t = 0; t < tets.size(); ++t) dead[t] = !m.alive[t];
@@ -691,7 +699,8 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
     }
   };
   survey(r.tetsBelowTargetBefore, r.tetsBelow5Before, r.minDihedralBefore);
-  if (params.targetMinDihedral > 0 && r.tetsBelowTargetBefore > 0)
+  const bool coarsen = params.coarsenMinDihedral > 0 && params.sizeAt;
+  if (params.targetMinDihedral > 0 && (r.tetsBelowTargetBefore > 0 || coarsen))
     improve(points, tets, labels, params, interfaces, ctx, r);
   if (params.minFragmentVoxels > 0)
     removeFragments(points, tets, labels, params.minFragmentVoxels * params.voxelVolume, r);
@@ -719,6 +728,7 @@ ReportCounts reportCounts(const OptimizeResult& r) {
           {"optimize_relabelled_tets", double(r.relabelledTets)},
           {"optimize_inserted_vertices", double(r.insertedVertices)},
           {"optimize_collapsed_edges", double(r.collapsedEdges)},
+          {"optimize_coarsened_vertices", double(r.coarsenedVertices)},
           {"optimize_fragments_removed", double(r.fragments)},
           {"optimize_fragment_tets", double(r.fragmentTets)},
           {"optimize_fragment_volume_mm3", r.fragmentVolume},

@@ -101,6 +101,17 @@ struct OptimizeParameters {
   /// without interfaces) onto one of its ends, where the edge lies on every interface the
   /// vanishing end lies on and the topology of the mesh and of each material stays the same.
   bool collapseEdges = true;
+  /// Interior coarsening, before the improvement rounds: an interior vertex (every tet around it
+  /// of one material, no interface or outer face) is collapsed onto a neighbour u when the edge
+  /// is shorter than coarsenShortEdge × the target size at its midpoint, every new edge from u is
+  /// at most coarsenLongEdge × the target size, and the worst new tet is at least
+  /// min(coarsenMinDihedral, the worst tet it replaces). Interfaces, the outer boundary and every
+  /// material's volume stay exactly as they are. Needs `sizeAt`; 0 = off.
+  double coarsenMinDihedral = 15.0;
+  double coarsenShortEdge = 1.3;
+  double coarsenLongEdge = 3.0;
+  /// Target edge length (mm) at a point of the mesh's frame (a run gives its sizing field).
+  std::function<double(const Vec3&)> sizeAt;
   /// Degrees: after the stage, tets below this are reported and the run's status becomes
   /// "poor_elements" (MeshCheck.h; the stage itself does not read it). 0 = no warning.
   double minDihedralWarning = 5.0;
@@ -143,6 +154,7 @@ struct OptimizeResult {
   size_t relabelledTets = 0;    ///< flat interface tets given to the neighbouring material
   size_t insertedVertices = 0;  ///< vertices inserted (see insertVertices)
   size_t collapsedEdges = 0;    ///< short edges collapsed (see collapseEdges)
+  size_t coarsenedVertices = 0; ///< interior vertices removed by coarsening (coarsenMinDihedral)
   size_t fragments = 0;         ///< floating fragments removed (see minFragmentVoxels)
   size_t fragmentTets = 0;      ///< their tets
   double fragmentVolume = 0;    ///< their volume, mm^3
@@ -154,7 +166,7 @@ struct OptimizeResult {
 /// optimize_smoothed_vertices, optimize_interface_vertex_moves, optimize_triple_line_vertex_moves,
 /// optimize_junction_vertex_moves,
 /// optimize_interface_flips, optimize_peeled_tets, optimize_relabelled_tets,
-/// optimize_inserted_vertices, optimize_collapsed_edges,
+/// optimize_inserted_vertices, optimize_collapsed_edges, optimize_coarsened_vertices,
 /// optimize_fragments_removed, optimize_fragment_tets, optimize_fragment_volume_mm3, optimize_passes.
 ReportCounts reportCounts(const OptimizeResult& result);
 
@@ -165,6 +177,9 @@ void eraseTets(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& t
 
 /// Minimum dihedral angle of a tet in degrees; -1 when it is not positively oriented (or flat).
 double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
+/// The cosine of that angle (largest cosine of a dihedral angle; no acos, for comparisons); 2 when
+/// the tet is not positively oriented (or flat).
+double tetMaxDihedralCos(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
 
 /// Improves the mesh in place. `tets` must be positively oriented; `labels` holds one material
 /// per tet. Tets removed by peeling are erased and points no tet uses any more are dropped

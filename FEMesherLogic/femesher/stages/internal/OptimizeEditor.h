@@ -19,6 +19,7 @@ namespace femesher {
 namespace optimize_detail {
 
 constexpr double kEps = 1e-6;  // degrees: smallest improvement that counts
+constexpr double kDegToRad = 0.017453292519943295;
 /// Share of a material's volume that interface moves, relabelling and edge collapses may add or
 /// take in all (Editor::movedVolume).
 constexpr double kVolumeBudget = 1e-3;
@@ -94,6 +95,10 @@ class Editor {
   }
   double quality(const std::array<int32_t, 4>& T) const {
     return tetMinDihedral(pts[size_t(T[0])], pts[size_t(T[1])], pts[size_t(T[2])], pts[size_t(T[3])]);
+  }
+  /// Cosine of the minimum dihedral angle of T (tetMaxDihedralCos: 2 when flat or inverted).
+  double qualityCos(const std::array<int32_t, 4>& T) const {
+    return tetMaxDihedralCos(pts[size_t(T[0])], pts[size_t(T[1])], pts[size_t(T[2])], pts[size_t(T[3])]);
   }
   bool has(uint32_t t, int32_t v) const {
     const auto& T = tets[t];
@@ -223,6 +228,12 @@ bool relabelFlatTet(Editor& m, uint32_t t, const OptimizeInterfaces& interfaces,
 /// to `fresh`. True when applied (internal/EdgeCollapse.cxx).
 bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, const OptimizeInterfaces& interfaces,
                        std::vector<uint32_t>& fresh);
+
+/// Interior coarsening (OptimizeParameters::coarsenMinDihedral): removes interior vertices by
+/// collapsing each onto the neighbour that leaves the best worst tet, shortest edges relative to
+/// the target size first, in up to three sweeps; the vertices that received a collapse are then
+/// smoothed. Returns how many vertices went (internal/EdgeCollapse.cxx).
+size_t coarsenInterior(Editor& m, const OptimizeParameters& params);
 
 /// Distance (mm) from the centroid of triangle `f` to the smooth interface of materials a < b
 /// (0: the background); -1 when the projection fails (InterfaceSmoothing.cxx).
