@@ -245,7 +245,9 @@ bool removeInteriorVertex(Editor& m, int32_t v, const OptimizeParameters& p, int
   }
   std::sort(candidates.begin(), candidates.end());  // best worst tet first, then lower index
   for (const auto& [c, u] : candidates) {
-    if (!linkCondition(m, u, v, -1) || !linkCondition(m, u, v, label)) continue;
+    // v's tets are all of one material, so the link condition in that material's sub-complex
+    // follows from the one in the whole mesh (Lk(v) and Lk(uv) are the same in both).
+    if (!linkCondition(m, u, v, -1)) continue;
     std::vector<std::array<int32_t, 4>> moved;
     std::vector<uint32_t> old(star.begin(), star.end());
     for (uint32_t s : old) {
@@ -299,7 +301,7 @@ size_t coarsenInterior(Editor& m, const OptimizeParameters& p) {
   // The first sweep looks at every interior vertex, later ones at the neighbours of a removal.
   std::vector<char> look = interior, touched(m.pts.size(), 0), receiver(m.pts.size(), 0);
   std::vector<int32_t> nbrs;
-  for (int sweep = 0; sweep < 3; ++sweep) {
+  for (int sweep = 0; sweep < 2; ++sweep) {
     // Interior vertices with an edge shorter than coarsenShortEdge × size, shortest first.
     std::vector<std::pair<double, int32_t>> order;
     for (int32_t v = 0; v < int32_t(m.pts.size()); ++v) {

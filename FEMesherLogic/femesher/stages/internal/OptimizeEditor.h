@@ -231,8 +231,9 @@ bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, const OptimizeIn
 
 /// Interior coarsening (OptimizeParameters::coarsenMinDihedral): removes interior vertices by
 /// collapsing each onto the neighbour that leaves the best worst tet, shortest edges relative to
-/// the target size first, in up to three sweeps; the vertices that received a collapse are then
-/// smoothed. Returns how many vertices went (internal/EdgeCollapse.cxx).
+/// the target size first, in two sweeps (the second over the neighbours of a removal); the
+/// vertices that received a collapse are smoothed after each. Returns how many vertices went
+/// (internal/EdgeCollapse.cxx).
 size_t coarsenInterior(Editor& m, const OptimizeParameters& params);
 
 /// Distance (mm) from the centroid of triangle `f` to the smooth interface of materials a < b
