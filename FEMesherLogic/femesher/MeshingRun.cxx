@@ -130,8 +130,8 @@ void MeshingRun::sizingField() {
 }
 
 void MeshingRun::adoptVolumeMesh(const TetMesh& mesh) {
-  if (next_ != int(StageId::IndicatorFunctions) + 1 || !state_.field)
-    throw Error(ErrorCode::Internal, "adoptVolumeMesh: run exactly through IndicatorFunctions first");
+  if (next_ != int(StageId::SizingField) + 1 || !state_.field)
+    throw Error(ErrorCode::Internal, "adoptVolumeMesh: run exactly through SizingField first");
   const PreprocessedVolume& vol = state_.grid;
   std::map<int32_t, int32_t> compact;
   for (size_t c = 1; c < vol.userLabel.size(); ++c) compact[vol.userLabel[c]] = int32_t(c);

@@ -92,7 +92,8 @@ class MeshingRun {
 
   /// Takes an existing mesh (physical LPS, user labels, as the readers return it) as the volume
   /// mesh, so that the run continues with Optimize, Quality and Fidelity on it (`femesher
-  /// optimize`). Requires IndicatorFunctions to have run, and no stage after it. Throws
+  /// optimize`). Requires the run through SizingField (the interior coarsening follows the sizing
+  /// field), and no stage after it. Throws
   /// InvalidArgument when a tet's material is not a material of the label map (or was dropped or
   /// excluded) or a tet is inverted or flat.
   void adoptVolumeMesh(const TetMesh& mesh);

@@ -67,7 +67,7 @@ Result<PipelineResult> optimizeMesh(const LabelVolume& labels, const TetMesh& me
   PipelineResult result;
   const Status status = runGuarded([&] {
     MeshingRun run(labels, params, ctx);
-    run.runThrough(StageId::IndicatorFunctions);
+    run.runThrough(StageId::SizingField);  // the sizing field is what Optimize coarsens to
     run.adoptVolumeMesh(mesh);
     run.runThrough(StageId::Fidelity);
     result = collect(run, ctx, start);

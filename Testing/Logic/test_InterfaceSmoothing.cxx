@@ -50,6 +50,7 @@ std::unique_ptr<Optimized> optimizeShape(const LabelVolume& shape, bool interfac
     p.optimize.minFragmentVoxels = 0;
     p.optimize.insertVertices = false;
     p.optimize.collapseEdges = false;
+    p.optimize.coarsenMinDihedral = 0;
   }
   o->run = std::make_unique<MeshingRun>(shape, p, o->ctx);
   o->run->runThrough(StageId::VolumeMesh);
