@@ -53,6 +53,9 @@
 ///  - vertex insertion (insertVertices), when nothing above helps a tet: a new vertex replaces the
 ///    tet and its neighbours of the same material across unconstrained faces by a star of tets,
 ///    and moves to where the star's worst tet is best; kept only when that beats the old worst.
+/// Then the interior is coarsened (coarsenMinDihedral, with a size function `sizeAt`): interior
+/// vertices with an edge shorter than coarsenShortEdge × the size are collapsed onto a neighbour
+/// when the new tets stay at or above min(coarsenMinDihedral, the star's worst) (see below).
 /// Last, floating fragments (minFragmentVoxels) are removed.
 /// Interface triangles change only by these moves and flips, which relabel or re-triangulate
 /// whole tets: every interface triangle stays shared by the tets of both sides,
@@ -101,10 +104,11 @@ struct OptimizeParameters {
   /// without interfaces) onto one of its ends, where the edge lies on every interface the
   /// vanishing end lies on and the topology of the mesh and of each material stays the same.
   bool collapseEdges = true;
-  /// Interior coarsening, before the improvement rounds: an interior vertex (every tet around it
-  /// of one material, no interface or outer face) is collapsed onto a neighbour u when the edge
-  /// is shorter than coarsenShortEdge × the target size at its midpoint, every new edge from u is
-  /// at most coarsenLongEdge × the target size, and the worst new tet is at least
+  /// Interior coarsening, after the improvement rounds (and only when they run: targetMinDihedral
+  /// > 0): an interior vertex v (every tet around it of one material, no interface or outer face)
+  /// is collapsed onto one of its eight nearest neighbours u when the edge is shorter than
+  /// coarsenShortEdge × the target size at v, every new edge from u is at most coarsenLongEdge ×
+  /// that size, the link condition holds and the worst new tet is at least
   /// min(coarsenMinDihedral, the worst tet it replaces). Interfaces, the outer boundary and every
   /// material's volume stay exactly as they are. Needs `sizeAt`; 0 = off.
   double coarsenMinDihedral = 15.0;
