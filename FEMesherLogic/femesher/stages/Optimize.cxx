@@ -222,7 +222,6 @@ bool flipFace(Editor& m, uint32_t t, int k, std::vector<uint32_t>& fresh) {
 namespace {
 
 using namespace optimize_detail;
-constexpr double kRadToDeg = 57.29577951308232;
 
 /// For a vertex on constrained faces: true when all of them are outer-boundary faces of one
 /// material (no interface between two materials holds v) and their vertices lie within

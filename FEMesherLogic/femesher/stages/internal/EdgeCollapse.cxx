@@ -273,31 +273,8 @@ size_t coarsenInterior(Editor& m, const OptimizeParameters& p) {
   // Collapsing an interior vertex changes no interface or outer face: which vertices are interior
   // is known once for all sweeps.
   std::vector<char> interior(m.pts.size(), 0);
-  std::vector<std::array<int32_t, 2>> faces;  // the two other vertices of each face holding v
-  for (int32_t v = 0; v < int32_t(m.pts.size()); ++v) {
-    const auto& star = m.around[size_t(v)];
-    if (star.empty()) continue;
-    // Interior: one material around v and every face holding v shared by two of its tets.
-    bool one = true;
-    faces.clear();
-    for (uint32_t s : star) {
-      one = one && m.labels[s] == m.labels[star[0]];
-      std::array<int32_t, 3> o{};
-      int n = 0;
-      for (int32_t w : m.tets[s])
-        if (w != v) o[size_t(n++)] = w;
-      std::sort(o.begin(), o.end());
-      faces.push_back({o[0], o[1]});
-      faces.push_back({o[0], o[2]});
-      faces.push_back({o[1], o[2]});
-    }
-    if (!one) continue;
-    std::sort(faces.begin(), faces.end());
-    bool paired = faces.size() % 2 == 0;
-    for (size_t i = 0; paired && i < faces.size(); i += 2)
-      paired = faces[i] == faces[i + 1] && (i + 2 >= faces.size() || faces[i + 2] != faces[i]);
-    interior[size_t(v)] = paired;
-  }
+  for (int32_t v = 0; v < int32_t(m.pts.size()); ++v)
+    interior[size_t(v)] = !m.around[size_t(v)].empty() && !m.fixedVertex(v);
   // The first sweep looks at every interior vertex, later ones at the neighbours of a removal.
   std::vector<char> look = interior, touched(m.pts.size(), 0), receiver(m.pts.size(), 0);
   std::vector<int32_t> nbrs;

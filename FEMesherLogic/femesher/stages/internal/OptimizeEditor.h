@@ -19,7 +19,8 @@ namespace femesher {
 namespace optimize_detail {
 
 constexpr double kEps = 1e-6;  // degrees: smallest improvement that counts
-constexpr double kDegToRad = 0.017453292519943295;
+constexpr double kRadToDeg = 57.29577951308232;
+constexpr double kDegToRad = 1 / kRadToDeg;
 /// Share of a material's volume that interface moves, relabelling and edge collapses may add or
 /// take in all (Editor::movedVolume).
 constexpr double kVolumeBudget = 1e-3;
@@ -60,6 +61,7 @@ class Editor {
   std::vector<char> alive;
   std::vector<std::vector<uint32_t>> around;  // alive tets per vertex
   std::vector<int8_t> fixedState;             // -1 unknown, 0 free, 1 on a boundary/interface
+  std::vector<std::array<int32_t, 2>> starFaces;  // scratch of fixedVertex
   std::vector<size_t> perLabel;
   /// Per material: volume at the start, the net volume interface moves and relabelling added so
   /// far, and the volume peeling removed (mm^3).
@@ -125,21 +127,34 @@ class Editor {
       if (i != k) f[size_t(n++)] = T[size_t(i)];
     return f;
   }
-  /// A face is constrained when it is on the outer boundary or between two materials.
-  bool constrained(uint32_t t, int k) const {
-    const auto f = face(t, k);
-    const int64_t s = across(t, f[0], f[1], f[2]);
-    return s < 0 || labels[size_t(s)] != labels[t];
-  }
-  /// A vertex is fixed when a constrained face holds it (cached; kill and relabel forget the
-  /// state of the tet's vertices: peeling and relabelling may fix a free vertex).
+  /// A vertex is fixed when a constrained face holds it: one on the outer boundary or between two
+  /// materials (cached; kill and relabel forget the state of the tet's vertices: peeling and
+  /// relabelling may fix a free vertex).
   bool fixedVertex(int32_t v) {
     int8_t& st = fixedState[size_t(v)];
     if (st >= 0) return st == 1;
-    st = 0;
-    for (uint32_t t : around[size_t(v)])
-      for (int k = 0; k < 4 && st == 0; ++k)
-        if (tets[t][size_t(k)] != v && constrained(t, k)) st = 1;
+    // The faces holding v, as their two other vertices: each must be held by exactly two of v's
+    // tets, of one material (one pass over the star instead of a search per face).
+    const auto& star = around[size_t(v)];
+    starFaces.clear();
+    bool oneMaterial = true;
+    for (uint32_t t : star) {
+      oneMaterial = oneMaterial && labels[t] == labels[star[0]];
+      std::array<int32_t, 3> o{};
+      int n = 0;
+      for (int32_t w : tets[t])
+        if (w != v) o[size_t(n++)] = w;
+      std::sort(o.begin(), o.end());
+      starFaces.push_back({o[0], o[1]});
+      starFaces.push_back({o[0], o[2]});
+      starFaces.push_back({o[1], o[2]});
+    }
+    std::sort(starFaces.begin(), starFaces.end());
+    bool paired = oneMaterial && starFaces.size() % 2 == 0;
+    for (size_t i = 0; paired && i < starFaces.size(); i += 2)
+      paired = starFaces[i] == starFaces[i + 1] &&
+               (i + 2 >= starFaces.size() || starFaces[i + 2] != starFaces[i]);
+    st = paired ? 0 : 1;
     return st == 1;
   }
   void relabel(uint32_t t, int32_t label) {
