@@ -3,9 +3,9 @@
 #include <femesher/Types.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <string>
-#include <unordered_map>
 
 namespace femesher {
 
@@ -16,25 +16,10 @@ Mat3 inverse3(const Mat3& m) {
                i = m[8];
   const double det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g);
   const double s = 1.0 / det;
-  return {{(e * i - f * h) * s, (c * h - b * i) * s, (b * f - c * e) * s,
-           (f * g - d * i) * s, (a * i - c * g) * s, (c * d - a * f) * s,
-           (d * h - e * g) * s, (b * g - a * h) * s, (a * e - b * d) * s}};
+  return {{(e * i - f * h) * s, (c * h - b * i) * s, (b * f - c * e) * s, (f * g - d * i) * s,
+           (a * i - c * g) * s, (c * d - a * f) * s, (d * h - e * g) * s, (b * g - a * h) * s,
+           (a * e - b * d) * s}};
 }
-
-struct FaceKey {
-  std::array<int32_t, 3> v;
-  bool operator==(const FaceKey& o) const { return v == o.v; }
-};
-struct FaceKeyHash {
-  size_t operator()(const FaceKey& k) const {
-    uint64_t h = 1469598103934665603ull;
-    for (int x : k.v) {
-      h ^= uint64_t(uint32_t(x));
-      h *= 1099511628211ull;
-    }
-    return size_t(h);
-  }
-};
 
 }  // namespace
 
@@ -52,12 +37,25 @@ std::array<double, 3> defaultLabelColor(int32_t id) {
   const double s = 0.6, v = 0.85, c = v * s;
   const double x = c * (1 - std::fabs(std::fmod(hue, 2.0) - 1));
   double r = 0, g = 0, b = 0;
-  if (hue < 1) { r = c; g = x; }
-  else if (hue < 2) { r = x; g = c; }
-  else if (hue < 3) { g = c; b = x; }
-  else if (hue < 4) { g = x; b = c; }
-  else if (hue < 5) { r = x; b = c; }
-  else { r = c; b = x; }
+  if (hue < 1) {
+    r = c;
+    g = x;
+  } else if (hue < 2) {
+    r = x;
+    g = c;
+  } else if (hue < 3) {
+    g = c;
+    b = x;
+  } else if (hue < 4) {
+    g = x;
+    b = c;
+  } else if (hue < 5) {
+    r = x;
+    b = c;
+  } else {
+    r = c;
+    b = x;
+  }
   const double m = v - c;
   return {r + m, g + m, b + m};
 }
@@ -109,7 +107,8 @@ double TetMesh::tetVolume(size_t t) const {
   const double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
   const double w[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]};
   return (u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0]) +
-          u[2] * (v[0] * w[1] - v[1] * w[0])) / 6.0;
+          u[2] * (v[0] * w[1] - v[1] * w[0])) /
+         6.0;
 }
 
 std::vector<InterfaceTriangle> extractInterfaces(const TetMesh& mesh) {
@@ -121,26 +120,55 @@ std::vector<InterfaceTriangle> extractInterfaces(const TetMesh& mesh) {
     int count;
     int32_t other;
   };
-  std::unordered_map<FaceKey, Entry, FaceKeyHash> faces;
-  faces.reserve(mesh.tets.size() * 2 + 16);
-  for (size_t t = 0; t < mesh.tets.size(); ++t) {
-    for (int f = 0; f < 4; ++f) {
-      FaceKey key{{mesh.tets[t][kFace[f][0]], mesh.tets[t][kFace[f][1]], mesh.tets[t][kFace[f][2]]}};
-      std::sort(key.v.begin(), key.v.end());
-      auto it = faces.find(key);
-      if (it == faces.end()) {
-        faces.emplace(key, Entry{int32_t(t), f, 1, -1});
-      } else {
-        if (++it->second.count > 2)
-          throw Error(ErrorCode::MeshingFailed,
-                      "Mesh is not conformal: a triangle is shared by more than two tets");
-        it->second.other = int32_t(t);
+  // Faces bucketed by their smallest vertex (counting sort), then matched within each bucket by
+  // the other two: linear, and no hash map of every face.
+  const size_t nTets = mesh.tets.size();
+  int32_t maxVertex = -1;
+  for (const auto& T : mesh.tets)
+    for (int32_t v : T) maxVertex = std::max(maxVertex, v);
+  struct Slot {
+    int32_t b, c;
+    uint32_t face;  ///< tet * 4 + f
+  };
+  std::vector<uint32_t> start(size_t(maxVertex) + 2, 0);
+  auto sortedFace = [&](size_t t, int f) {
+    std::array<int32_t, 3> k{mesh.tets[t][kFace[f][0]], mesh.tets[t][kFace[f][1]],
+                             mesh.tets[t][kFace[f][2]]};
+    std::sort(k.begin(), k.end());
+    return k;
+  };
+  for (size_t t = 0; t < nTets; ++t)
+    for (int f = 0; f < 4; ++f) ++start[size_t(sortedFace(t, f)[0]) + 1];
+  for (size_t v = 1; v < start.size(); ++v) start[v] += start[v - 1];
+  std::vector<Slot> slots(nTets * 4);
+  {
+    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+    for (size_t t = 0; t < nTets; ++t)
+      for (int f = 0; f < 4; ++f) {
+        const auto k = sortedFace(t, f);
+        slots[fill[size_t(k[0])]++] = Slot{k[1], k[2], uint32_t(t * 4 + size_t(f))};
       }
+  }
+  std::vector<Entry> faces;
+  faces.reserve(nTets * 2 + 16);
+  for (size_t v = 0; v + 1 < start.size(); ++v) {
+    auto first = slots.begin() + start[v], last = slots.begin() + start[v + 1];
+    std::sort(first, last, [](const Slot& x, const Slot& y) {
+      return x.b != y.b ? x.b < y.b : x.c != y.c ? x.c < y.c : x.face < y.face;
+    });
+    for (auto it = first; it != last;) {
+      auto run = it;
+      while (run != last && run->b == it->b && run->c == it->c) ++run;
+      if (run - it > 2)
+        throw Error(ErrorCode::MeshingFailed,
+                    "Mesh is not conformal: a triangle is shared by more than two tets");
+      faces.push_back(Entry{int32_t(it->face / 4), int(it->face % 4), int(run - it),
+                            run - it == 2 ? int32_t((it + 1)->face / 4) : -1});
+      it = run;
     }
   }
   std::vector<InterfaceTriangle> out;
-  for (const auto& kv : faces) {
-    const Entry& e = kv.second;
+  for (const Entry& e : faces) {
     const int32_t la = mesh.tetLabels[e.tet];
     const int32_t lb = e.other >= 0 ? mesh.tetLabels[e.other] : kExteriorLabel;
     if (e.other >= 0 && la == lb) continue;

@@ -5,6 +5,7 @@
 #include <femesher/stages/IndicatorFunctions.h>
 #include <femesher/stages/LabelledDelaunay.h>
 #include <femesher/stages/internal/LabelledDelaunayImpl.h>
+#include <femesher/stages/internal/SpatialOrder.h>
 
 #include <algorithm>
 #include <unordered_map>
@@ -282,34 +283,6 @@ void LabelledDelaunay::interfaceTriangles(std::vector<Vec3>& points,
 namespace internal {
 
 namespace {
-/// Indices of `points` in Z-order (Morton order on a grid of `cell`): neighbours in the list are
-/// near in space, so walks from one to the next in the triangulation are short.
-std::vector<uint32_t> mortonOrder(const std::vector<Vec3>& points, double cell) {
-  Vec3 lo{1e300, 1e300, 1e300};
-  for (const auto& p : points)
-    for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], p[a]);
-  auto spread = [](uint64_t x) {  // 21 bits -> every third bit
-    x &= 0x1FFFFF;
-    x = (x | x << 32) & 0x1F00000000FFFFull;
-    x = (x | x << 16) & 0x1F0000FF0000FFull;
-    x = (x | x << 8) & 0x100F00F00F00F00Full;
-    x = (x | x << 4) & 0x10C30C30C30C30C3ull;
-    x = (x | x << 2) & 0x1249249249249249ull;
-    return x;
-  };
-  std::vector<std::pair<uint64_t, uint32_t>> keyed(points.size());
-  for (size_t i = 0; i < points.size(); ++i) {
-    uint64_t code = 0;
-    for (int a = 0; a < 3; ++a)
-      code |= spread(uint64_t(std::max(0.0, (points[i][a] - lo[a]) / cell))) << a;
-    keyed[i] = {code, uint32_t(i)};
-  }
-  std::sort(keyed.begin(), keyed.end());
-  std::vector<uint32_t> order(points.size());
-  for (size_t i = 0; i < keyed.size(); ++i) order[i] = keyed[i].second;
-  return order;
-}
-
 /// A canonical point within 0.002 voxel of the input's box, put exactly on it (below every
 /// projection tolerance; box faces become exactly planar, so no flat Delaunay tets lie on them).
 Vec3 snapToBox(const IndicatorField& field, const Vec3& canonical) {  // unchanged when not snapped

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
+#include <femesher/VecMath.h>
 #include <femesher/stages/internal/TetRaster.h>
 
 #include <algorithm>
@@ -25,10 +26,10 @@ bool lexPositive(const double* n) {
 
 /// Barycentric coordinates of one tet as affine functions of the (continuous) voxel index.
 struct TetFrame {
-  Vec3 a;                  ///< vertex 0
-  double g[4][3];          ///< gradients of λ1..λ3 (row 0 unused)
-  bool keepOnFace[4];      ///< a point on face f belongs to this tet
-  bool flat = false;       ///< no interior: contains nothing
+  Vec3 a;              ///< vertex 0
+  double g[4][3];      ///< gradients of λ1..λ3 (row 0 unused)
+  bool keepOnFace[4];  ///< a point on face f belongs to this tet
+  bool flat = false;   ///< no interior: contains nothing
   bool contains(const Vec3& p) const {
     const double px = p[0] - a[0], py = p[1] - a[1], pz = p[2] - a[2];
     const double l1 = g[1][0] * px + g[1][1] * py + g[1][2] * pz;
@@ -92,13 +93,16 @@ struct TetCorners {
   double mn[3], mx[3];
 };
 
-/// Calls fn(t, vi) for every voxel centre vi in z range [zs, ze] that tet t contains.
+/// Calls fn(t, vi) for every voxel centre vi in z range [zs, ze] that a tet t of `candidates`
+/// contains.
 template <class Fn>
 void forEachCentre(const LabelVolume& labels, const TetMesh& mesh, const std::vector<Vec3>& idx,
-                   int zs, int ze, RunContext* ctx, Fn&& fn) {
+                   const std::vector<uint32_t>& candidates, int zs, int ze, RunContext* ctx,
+                   Fn&& fn) {
   const auto& dims = labels.dims;
-  for (size_t t = 0; t < mesh.tets.size(); ++t) {
-    if ((t & 0xFFFF) == 0 && ctx && ctx->isCanceled()) return;
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    if ((i & 0xFFFF) == 0 && ctx && ctx->isCanceled()) return;
+    const size_t t = candidates[i];
     const TetCorners q(idx, mesh.tets[t]);
     int lo[3], hi[3];
     for (int k = 0; k < 3; ++k) sampleRange(q.mn[k], q.mx[k], dims[k], 1, lo[k], hi[k]);
@@ -117,23 +121,26 @@ void forEachCentre(const LabelVolume& labels, const TetMesh& mesh, const std::ve
 /// A deterministic offset in [0, 1) for sub-sample (X, Y, Z) along `axis` (stratified sampling:
 /// one point at a random place in each sub-cell, so the sub-grid does not alias with voxel faces).
 double jitter(int X, int Y, int Z, int axis) {
-  uint64_t h = uint64_t(uint32_t(X)) * 0x9E3779B97F4A7C15ull ^ uint64_t(uint32_t(Y)) * 0xC2B2AE3D27D4EB4Full ^
-               uint64_t(uint32_t(Z)) * 0x165667B19E3779F9ull ^ uint64_t(axis + 1) * 0x27D4EB2F165667C5ull;
+  uint64_t h = uint64_t(uint32_t(X)) * 0x9E3779B97F4A7C15ull ^
+               uint64_t(uint32_t(Y)) * 0xC2B2AE3D27D4EB4Full ^
+               uint64_t(uint32_t(Z)) * 0x165667B19E3779F9ull ^
+               uint64_t(axis + 1) * 0x27D4EB2F165667C5ull;
   h ^= h >> 31;
   h *= 0x7FB5D329728EA185ull;
   h ^= h >> 27;
   return double(h >> 11) * (1.0 / 9007199254740992.0);
 }
 
-/// Calls fn(t, vi) for every sub-sample of a voxel vi with cut[vi], in z range [zs, ze], that tet
-/// t contains: s x s x s stratified samples per voxel.
+/// Calls fn(t, vi) for every sub-sample of a voxel vi with cut[vi], in z range [zs, ze], that a
+/// tet t of `candidates` contains: s x s x s stratified samples per voxel.
 template <class Fn>
 void forEachCutSample(const LabelVolume& labels, const TetMesh& mesh, const std::vector<Vec3>& idx,
-                      const std::vector<uint8_t>& cut, int s, int zs, int ze, RunContext* ctx,
-                      Fn&& fn) {
+                      const std::vector<uint32_t>& candidates, const std::vector<uint8_t>& cut,
+                      int s, int zs, int ze, RunContext* ctx, Fn&& fn) {
   const auto& dims = labels.dims;
-  for (size_t t = 0; t < mesh.tets.size(); ++t) {
-    if ((t & 0xFFFF) == 0 && ctx && ctx->isCanceled()) return;
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    if ((i & 0xFFFF) == 0 && ctx && ctx->isCanceled()) return;
+    const size_t t = candidates[i];
     const TetCorners q(idx, mesh.tets[t]);
     int lo[3], hi[3], slo[3], shi[3];  // voxel range and sub-sample cell range of the tet
     for (int k = 0; k < 3; ++k) {
@@ -173,6 +180,41 @@ void forEachCutSample(const LabelVolume& labels, const TetMesh& mesh, const std:
   }
 }
 
+/// The z-slabs a parallel sweep of the grid uses (about eight per thread): slab k holds voxel
+/// planes [first[k], first[k + 1]), and tets[k] the tets whose z extent (continuous voxel index,
+/// grown by half a voxel) reaches it, in mesh order.
+struct Slabs {
+  std::vector<int> first;
+  std::vector<std::vector<uint32_t>> tets;
+};
+
+Slabs slabsOf(const LabelVolume& labels, const TetMesh& mesh, const std::vector<Vec3>& idx,
+              int threads) {
+  const int nz = labels.dims[2];
+  const int n = std::min(nz, resolveThreads(threads) * 8);
+  Slabs sl;
+  sl.first.resize(size_t(n) + 1);
+  if (n <= 0) return sl;
+  for (int k = 0; k <= n; ++k) sl.first[size_t(k)] = int(int64_t(nz) * k / n);
+  std::vector<int> slabOfPlane(size_t(std::max(nz, 1)));
+  for (int k = 0; k < n; ++k)
+    for (int z = sl.first[size_t(k)]; z < sl.first[size_t(k) + 1]; ++z) slabOfPlane[size_t(z)] = k;
+  sl.tets.resize(size_t(n));
+  for (size_t t = 0; t < mesh.tets.size(); ++t) {
+    double mn = 1e300, mx = -1e300;
+    for (int32_t v : mesh.tets[t]) {
+      mn = std::min(mn, idx[size_t(v)][2]);
+      mx = std::max(mx, idx[size_t(v)][2]);
+    }
+    const double lo = std::floor(mn - 0.5), hi = std::ceil(mx + 0.5);
+    if (!(hi >= 0) || !(lo <= nz - 1)) continue;
+    const int k0 = slabOfPlane[size_t(std::max(0.0, lo))];
+    const int k1 = slabOfPlane[size_t(std::min(double(nz - 1), hi))];
+    for (int k = k0; k <= k1; ++k) sl.tets[size_t(k)].push_back(uint32_t(t));
+  }
+  return sl;
+}
+
 std::vector<Vec3> indexPositions(const LabelVolume& labels, const TetMesh& mesh, int threads) {
   std::vector<Vec3> idx(mesh.points.size());
   parallelFor(idx.size(), threads, [&](size_t b, size_t e, int) {
@@ -181,24 +223,48 @@ std::vector<Vec3> indexPositions(const LabelVolume& labels, const TetMesh& mesh,
   return idx;
 }
 
-/// Voxels crossed by the bounding box of an interface or boundary triangle of the mesh.
-std::vector<uint8_t> cutVoxels(const LabelVolume& labels, const std::vector<InterfaceTriangle>& tris,
+/// True when triangle (a, b, c) meets the axis-aligned cube of half-width h centred at o: no
+/// separating axis among the triangle's normal and the nine products of a cube axis with a
+/// triangle edge (the cube's own axes are the caller's bounding-box test).
+bool triangleMeetsCube(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& o, double h) {
+  const Vec3 v[3] = {sub(a, o), sub(b, o), sub(c, o)};
+  const Vec3 e[3] = {sub(v[1], v[0]), sub(v[2], v[1]), sub(v[0], v[2])};
+  auto separates = [&](const Vec3& axis) {
+    const double p0 = dot(axis, v[0]), p1 = dot(axis, v[1]), p2 = dot(axis, v[2]);
+    const double r = h * (std::fabs(axis[0]) + std::fabs(axis[1]) + std::fabs(axis[2]));
+    return std::min({p0, p1, p2}) > r || std::max({p0, p1, p2}) < -r;
+  };
+  for (const Vec3& edge : e) {
+    if (separates({0.0, -edge[2], edge[1]}) || separates({edge[2], 0.0, -edge[0]}) ||
+        separates({-edge[1], edge[0], 0.0}))
+      return false;
+  }
+  return !separates(cross(e[0], e[1]));
+}
+
+/// Voxels an interface or boundary triangle of the mesh meets (the voxel's cube grown by 1e-6
+/// voxel, so that a triangle on a voxel face counts for both voxels): every other voxel lies in
+/// one material region of the mesh.
+std::vector<uint8_t> cutVoxels(const LabelVolume& labels,
+                               const std::vector<InterfaceTriangle>& tris,
                                const std::vector<Vec3>& idx) {
+  constexpr double kGrow = 1e-6;
   std::vector<uint8_t> cut(labels.voxelCount(), 0);
   for (const InterfaceTriangle& tri : tris) {
+    const Vec3 &a = idx[size_t(tri.v[0])], &b = idx[size_t(tri.v[1])], &c = idx[size_t(tri.v[2])];
     int lo[3], hi[3];
     for (int k = 0; k < 3; ++k) {
-      double mn = idx[size_t(tri.v[0])][k], mx = mn;
-      for (int q = 1; q < 3; ++q) {
-        mn = std::min(mn, idx[size_t(tri.v[q])][k]);
-        mx = std::max(mx, idx[size_t(tri.v[q])][k]);
-      }
-      lo[k] = std::max(0, int(std::ceil(mn - 0.5 - 1e-6)));
-      hi[k] = std::min(labels.dims[k] - 1, int(std::floor(mx + 0.5 + 1e-6)));
+      const double mn = std::min({a[k], b[k], c[k]}), mx = std::max({a[k], b[k], c[k]});
+      lo[k] = std::max(0, int(std::ceil(mn - 0.5 - kGrow)));
+      hi[k] = std::min(labels.dims[k] - 1, int(std::floor(mx + 0.5 + kGrow)));
     }
     for (int z = lo[2]; z <= hi[2]; ++z)
       for (int y = lo[1]; y <= hi[1]; ++y)
-        for (int x = lo[0]; x <= hi[0]; ++x) cut[labels.index(x, y, z)] = 1;
+        for (int x = lo[0]; x <= hi[0]; ++x) {
+          uint8_t& flag = cut[labels.index(x, y, z)];
+          if (!flag && triangleMeetsCube(a, b, c, {double(x), double(y), double(z)}, 0.5 + kGrow))
+            flag = 1;
+        }
   }
   return cut;
 }
@@ -210,7 +276,8 @@ LabelIndex::LabelIndex(const std::vector<int32_t>& sorted) : ids_(sorted) {
   const int64_t range = sorted.empty() ? 0 : int64_t(sorted.back()) - lo_ + 1;
   if (range <= (int64_t(1) << 22)) {
     table_.assign(size_t(range), 0);
-    for (size_t k = 0; k < sorted.size(); ++k) table_[size_t(int64_t(sorted[k]) - lo_)] = uint16_t(k);
+    for (size_t k = 0; k < sorted.size(); ++k)
+      table_[size_t(int64_t(sorted[k]) - lo_)] = uint16_t(k);
   } else {
     for (size_t k = 0; k < sorted.size(); ++k) map_[sorted[k]] = uint16_t(k);
   }
@@ -221,13 +288,11 @@ std::vector<uint16_t> rasterize(const LabelVolume& labels, const TetMesh& mesh,
                                 int threads, RunContext* ctx) {
   const std::vector<Vec3> idx = indexPositions(labels, mesh, threads);
   std::vector<uint16_t> meshLabel(labels.voxelCount(), background);
-  const int nz = labels.dims[2];
-  const int slabs = std::min(nz, resolveThreads(threads) * 8);
-  parallelFor(size_t(slabs), threads, [&](size_t s0, size_t s1, int) {
+  const Slabs slabs = slabsOf(labels, mesh, idx, threads);
+  parallelFor(slabs.tets.size(), threads, [&](size_t s0, size_t s1, int) {
     for (size_t sl = s0; sl < s1; ++sl) {
-      const int zs = int(size_t(nz) * sl / size_t(slabs));
-      const int ze = int(size_t(nz) * (sl + 1) / size_t(slabs)) - 1;
-      forEachCentre(labels, mesh, idx, zs, ze, ctx,
+      const int zs = slabs.first[sl], ze = slabs.first[sl + 1] - 1;
+      forEachCentre(labels, mesh, idx, slabs.tets[sl], zs, ze, ctx,
                     [&](size_t t, size_t vi) { meshLabel[vi] = tetValue[t]; });
     }
   });
@@ -246,22 +311,23 @@ std::vector<double> overlapVolumes(const LabelVolume& labels, const TetMesh& mes
   const int nz = labels.dims[2];
   const size_t sliceSize = size_t(labels.dims[0]) * size_t(labels.dims[1]);
   // Per z-slice: whole voxels (uncut, centre agrees) and sub-samples (cut voxels) that agree.
-  std::vector<std::vector<uint64_t>> whole(static_cast<size_t>(nz)), samples(static_cast<size_t>(nz));
-  const int slabs = std::min(nz, resolveThreads(threads) * 8);
-  parallelFor(size_t(slabs), threads, [&](size_t s0, size_t s1, int) {
+  std::vector<std::vector<uint64_t>> whole(static_cast<size_t>(nz)),
+      samples(static_cast<size_t>(nz));
+  const Slabs slabs = slabsOf(labels, mesh, idx, threads);
+  parallelFor(slabs.tets.size(), threads, [&](size_t s0, size_t s1, int) {
     for (size_t sl = s0; sl < s1; ++sl) {
-      const int zs = int(size_t(nz) * sl / size_t(slabs));
-      const int ze = int(size_t(nz) * (sl + 1) / size_t(slabs)) - 1;
+      const int zs = slabs.first[sl], ze = slabs.first[sl + 1] - 1;
       std::vector<uint64_t> w(L, 0), smp(L, 0);
       for (size_t vi = size_t(zs) * sliceSize; vi < size_t(ze + 1) * sliceSize; ++vi) {
         if (cut[vi]) continue;
         const uint16_t l = index(labels.labels[vi]);
         if (l != 0 && centre[vi] == l) ++w[l];
       }
-      forEachCutSample(labels, mesh, idx, cut, s, zs, ze, ctx, [&](size_t t, size_t vi) {
-        const uint16_t l = tetIndex[t];
-        if (l == index(labels.labels[vi])) ++smp[l];
-      });
+      forEachCutSample(labels, mesh, idx, slabs.tets[sl], cut, s, zs, ze, ctx,
+                       [&](size_t t, size_t vi) {
+                         const uint16_t l = tetIndex[t];
+                         if (l == index(labels.labels[vi])) ++smp[l];
+                       });
       whole[size_t(zs)] = std::move(w);
       samples[size_t(zs)] = std::move(smp);
     }

@@ -3,6 +3,7 @@
 #include <femesher/RunContext.h>
 #include <femesher/Status.h>
 #include <femesher/stages/VolumeMesh.h>
+#include <femesher/stages/internal/SpatialOrder.h>
 
 #include <tetgen.h>
 
@@ -423,7 +424,9 @@ bool appendTets(const TetgenInput& in, const TetgenOutput& out, const std::vecto
   return true;
 }
 
-/// Keeps only the points that tets use, renumbers, and orients every tet positively.
+/// Keeps only the points that tets use, orients every tet positively and renumbers points and
+/// tets in spatial order (internal::spatiallyRenumber: the stages after this one sweep the mesh
+/// locally, and TetGen's numbering, material by material, scatters neighbours in memory).
 void compactAndOrient(VolumeMeshResult& r) {
   std::vector<int32_t> newId(r.points.size(), -1);
   std::vector<Vec3> pts;
@@ -438,6 +441,7 @@ void compactAndOrient(VolumeMeshResult& r) {
     if (signedVolume(pts[T[0]], pts[T[1]], pts[T[2]], pts[T[3]]) < 0) std::swap(T[2], T[3]);
   }
   r.points.swap(pts);
+  internal::spatiallyRenumber(r.points, r.tets, r.labels);
 }
 
 }  // namespace

@@ -43,7 +43,8 @@ struct VolumeMeshParameters {
 };
 
 struct VolumeMeshResult {
-  /// Canonical-frame mesh with *compact* labels (converted by the pipeline).
+  /// Canonical-frame mesh with *compact* labels (converted by the pipeline); from TetGen, points
+  /// and tets come in spatial (Morton) order.
   std::vector<Vec3> points;
   std::vector<std::array<int32_t, 4>> tets;
   std::vector<int32_t> labels;
