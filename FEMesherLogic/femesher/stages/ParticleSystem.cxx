@@ -431,8 +431,8 @@ class PopulationControl {
   }
 
   /// Removes and splits particles of `P` (the moved particles of the step), keeping `lambda`
-  /// aligned (-1 for new particles). Returns whether the population changed.
-  bool apply(std::vector<Particle>& P, std::vector<double>& lambda, ParticleSystemResult& res) {
+  /// aligned (-1 for new particles). Returns how many particles went or came.
+  size_t apply(std::vector<Particle>& P, std::vector<double>& lambda, ParticleSystemResult& res) {
     const size_t n = P.size();
     remove_.assign(n, 0);
     for (size_t i = nFixed_; i < n; ++i) {
@@ -461,7 +461,7 @@ class PopulationControl {
       kept.push_back(q);
       keptLambda.push_back(-1.0);
     }
-    const bool changed = kept.size() != n || !added_.empty();
+    const size_t changed = (n + added_.size() - kept.size()) + added_.size();
     P.swap(kept);
     lambda.swap(keptLambda);
     return changed;
@@ -614,9 +614,12 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
     const bool populationStep =
         (iteration + 1) % params.populationInterval == 0 && iteration + 1 < params.maxIterations;
     PopulationControl population(step, nFixed, iteration, populationStep, params);
-    if (population.needed()) {
-      const bool changed = population.apply(P, lambda, res);
-      if (populationStep) populationChanged = changed;
+    size_t changed = 0;
+    if (population.needed()) changed = population.apply(P, lambda, res);
+    if (populationStep) {
+      populationChanged = changed > 0;
+      ctx.debug("ParticleSystem iteration " + std::to_string(iteration) +
+                ": population step changed " + std::to_string(changed) + " particles");
     }
     ctx.progress(double(iteration + 1) / params.maxIterations);
     sendPreview(ctx, P, S, input, iteration, false);
