@@ -413,6 +413,10 @@ double recordIteration(const JacobiStep& st, size_t nFixed, int iteration,
 /// particles are removed and lonely ones split.
 class PopulationControl {
  public:
+  /// The last apply()'s removals by cause, and its splits (splits()).
+  size_t lostNow = 0, tooCloseNow = 0, crowdedNow = 0;
+  size_t splits() const { return added_.size(); }
+
   PopulationControl(const JacobiStep& st, size_t nFixed, int iteration, bool populationStep,
                     const ParticleSystemParameters& params)
       : st_(st),
@@ -434,16 +438,20 @@ class PopulationControl {
   /// aligned (-1 for new particles). Returns how many particles went or came.
   size_t apply(std::vector<Particle>& P, std::vector<double>& lambda, ParticleSystemResult& res) {
     const size_t n = P.size();
+    lostNow = tooCloseNow = crowdedNow = 0;
     remove_.assign(n, 0);
     for (size_t i = nFixed_; i < n; ++i) {
       if (st_.lost[i]) {
         remove_[i] = 1;
         ++res.lost;
+        ++lostNow;
         continue;
       }
-      if (tooClose(i) || (populationStep_ && crowded(i))) {
+      const bool close = tooClose(i);
+      if (close || (populationStep_ && crowded(i))) {
         remove_[i] = 1;
         ++res.removed;
+        ++(close ? tooCloseNow : crowdedNow);
         continue;
       }
       if (populationStep_ && st_.energy[i] < params_.splitEnergyFactor * ideal(i)) split(P[i], i);
@@ -619,7 +627,11 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
     if (populationStep) {
       populationChanged = changed > 0;
       ctx.debug("ParticleSystem iteration " + std::to_string(iteration) +
-                ": population step changed " + std::to_string(changed) + " particles");
+                ": population step changed " + std::to_string(changed) + " particles (split " +
+                std::to_string(population.splits()) + ", too close " +
+                std::to_string(population.tooCloseNow) + ", crowded " +
+                std::to_string(population.crowdedNow) + ", lost " +
+                std::to_string(population.lostNow) + ")");
     }
     ctx.progress(double(iteration + 1) / params.maxIterations);
     sendPreview(ctx, P, S, input, iteration, false);
