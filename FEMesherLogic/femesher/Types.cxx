@@ -3,9 +3,9 @@
 #include <femesher/Types.h>
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <string>
+#include <array>
 
 namespace femesher {
 
@@ -16,9 +16,9 @@ Mat3 inverse3(const Mat3& m) {
                i = m[8];
   const double det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g);
   const double s = 1.0 / det;
-  return {{(e * i - f * h) * s, (c * h - b * i) * s, (b * f - c * e) * s, (f * g - d * i) * s,
-           (a * i - c * g) * s, (c * d - a * f) * s, (d * h - e * g) * s, (b * g - a * h) * s,
-           (a * e - b * d) * s}};
+  return {{(e * i - f * h) * s, (c * h - b * i) * s, (b * f - c * e) * s,
+           (f * g - d * i) * s, (a * i - c * g) * s, (c * d - a * f) * s,
+           (d * h - e * g) * s, (b * g - a * h) * s, (a * e - b * d) * s}};
 }
 
 }  // namespace
@@ -37,25 +37,12 @@ std::array<double, 3> defaultLabelColor(int32_t id) {
   const double s = 0.6, v = 0.85, c = v * s;
   const double x = c * (1 - std::fabs(std::fmod(hue, 2.0) - 1));
   double r = 0, g = 0, b = 0;
-  if (hue < 1) {
-    r = c;
-    g = x;
-  } else if (hue < 2) {
-    r = x;
-    g = c;
-  } else if (hue < 3) {
-    g = c;
-    b = x;
-  } else if (hue < 4) {
-    g = x;
-    b = c;
-  } else if (hue < 5) {
-    r = x;
-    b = c;
-  } else {
-    r = c;
-    b = x;
-  }
+  if (hue < 1) { r = c; g = x; }
+  else if (hue < 2) { r = x; g = c; }
+  else if (hue < 3) { g = c; b = x; }
+  else if (hue < 4) { g = x; b = c; }
+  else if (hue < 5) { r = x; b = c; }
+  else { r = c; b = x; }
   const double m = v - c;
   return {r + m, g + m, b + m};
 }
@@ -107,8 +94,7 @@ double TetMesh::tetVolume(size_t t) const {
   const double v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
   const double w[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]};
   return (u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0]) +
-          u[2] * (v[0] * w[1] - v[1] * w[0])) /
-         6.0;
+          u[2] * (v[0] * w[1] - v[1] * w[0])) / 6.0;
 }
 
 std::vector<InterfaceTriangle> extractInterfaces(const TetMesh& mesh) {
@@ -117,8 +103,7 @@ std::vector<InterfaceTriangle> extractInterfaces(const TetMesh& mesh) {
   struct Entry {
     int32_t tet;
     int face;
-    int count;
-    int32_t other;
+    int32_t other;  ///< the tet on the other side, -1 on the boundary
   };
   // Faces bucketed by their smallest vertex (counting sort), then matched within each bucket by
   // the other two: linear, and no hash map of every face.
@@ -162,7 +147,7 @@ std::vector<InterfaceTriangle> extractInterfaces(const TetMesh& mesh) {
       if (run - it > 2)
         throw Error(ErrorCode::MeshingFailed,
                     "Mesh is not conformal: a triangle is shared by more than two tets");
-      faces.push_back(Entry{int32_t(it->face / 4), int(it->face % 4), int(run - it),
+      faces.push_back(Entry{int32_t(it->face / 4), int(it->face % 4),
                             run - it == 2 ? int32_t((it + 1)->face / 4) : -1});
       it = run;
     }

@@ -204,8 +204,9 @@ bool flipFace(Editor& m, uint32_t t, int k, std::vector<uint32_t>& fresh) {
              &D = m.pts[size_t(d)];
   if (dot(cross(sub(B, A), sub(C, A)), sub(D, A)) < 0) std::swap(f[1], f[2]);
   const double oldMin = std::min(m.quality(t), m.quality(uint32_t(s)));
-  const std::array<std::array<int32_t, 4>, 3> nt = {
-      {{e, d, f[0], f[1]}, {e, d, f[1], f[2]}, {e, d, f[2], f[0]}}};
+  const std::array<std::array<int32_t, 4>, 3> nt = {{{e, d, f[0], f[1]},
+                                                      {e, d, f[1], f[2]},
+                                                      {e, d, f[2], f[0]}}};
   double newMin = 1e300;
   for (const auto& T : nt) newMin = std::min(newMin, m.quality(T));
   if (newMin <= oldMin + kEps) return false;
@@ -479,7 +480,8 @@ double tetMaxDihedralCos(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3
   // Dihedral angle at the edge shared by faces i and j: pi - angle(n_i, n_j).
   double maxCos = -1;
   for (int i = 0; i < 4; ++i)
-    for (int j = i + 1; j < 4; ++j) maxCos = std::max(maxCos, -dot(n[i], n[j]) / (len[i] * len[j]));
+    for (int j = i + 1; j < 4; ++j)
+      maxCos = std::max(maxCos, -dot(n[i], n[j]) / (len[i] * len[j]));
   return std::clamp(maxCos, -1.0, 1.0);
 }
 
@@ -515,15 +517,13 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
     size_t changes = 0, done = 0;
     for (const auto& [q0, t] : order) {
       if ((++done & 0xFF) == 0) {
-        ctx.progress(
-            std::min(1.0, (double(pass) + double(done) / double(order.size())) / totalRounds));
+        ctx.progress(std::min(1.0, (double(pass) + double(done) / double(order.size())) / totalRounds));
       }
       if (!m.alive[t] || m.quality(t) >= params.targetMinDihedral) continue;
       fresh.clear();
       bool changed = false;
       // Peeling costs volume: a tet at or above the warning angle tries the flips first.
-      const bool flattest =
-          params.minDihedralWarning <= 0 || m.quality(t) < params.minDihedralWarning;
+      const bool flattest = params.minDihedralWarning <= 0 || m.quality(t) < params.minDihedralWarning;
       auto tryPeel = [&] {
         if (!changed && peel(m, t, params.peelDistance * params.voxelSize, flattest ? 1.0 : 0.75,
                              interfaces, fresh)) {
@@ -558,9 +558,9 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
         changed = true;
       }
       if (!changed && params.collapseEdges &&
-          collapseShortEdge(
-              m, t, interfaces.enabled() ? interfaces.facetDistance : 0.1 * params.voxelSize,
-              interfaces, fresh)) {
+          collapseShortEdge(m, t, interfaces.enabled() ? interfaces.facetDistance
+                                                       : 0.1 * params.voxelSize,
+                            interfaces, fresh)) {
         ++r.collapsedEdges;
         changed = true;
       }
@@ -608,6 +608,7 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
   eraseTets(points, tets, labels, dead);
 }
 
+
 /// Removes the face-connected pieces of the mesh (over all materials) lighter than `minVolume`
 /// mm^3, except a piece holding a material's last tets (and the points only they used).
 void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
@@ -652,9 +653,8 @@ void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 
   std::vector<uint32_t> roots;
   for (uint32_t t = 0; t < n; ++t)
     if (find(t) == t && volume[t] < minVolume) roots.push_back(t);
-  std::sort(roots.begin(), roots.end(), [&](uint32_t a, uint32_t b) {
-    return volume[a] != volume[b] ? volume[a] < volume[b] : a < b;
-  });
+  std::sort(roots.begin(), roots.end(),
+            [&](uint32_t a, uint32_t b) { return volume[a] != volume[b] ? volume[a] < volume[b] : a < b; });
   std::vector<std::vector<uint32_t>> members(n);
   for (uint32_t t = 0; t < n; ++t)
     if (volume[find(t)] < minVolume) members[find(t)].push_back(t);
@@ -707,6 +707,7 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
   ctx.progress(1.0);
   return r;
 }
+
 
 ReportCounts reportCounts(const OptimizeResult& r) {
   return {{"optimize_tets_below_target_before", double(r.tetsBelowTargetBefore)},

@@ -469,10 +469,9 @@ class PopulationControl {
       kept.push_back(q);
       keptLambda.push_back(-1.0);
     }
-    const size_t changed = (n + added_.size() - kept.size()) + added_.size();
     P.swap(kept);
     lambda.swap(keptLambda);
-    return changed;
+    return lostNow + tooCloseNow + crowdedNow + splits();
   }
 
  private:

@@ -26,10 +26,10 @@ bool lexPositive(const double* n) {
 
 /// Barycentric coordinates of one tet as affine functions of the (continuous) voxel index.
 struct TetFrame {
-  Vec3 a;              ///< vertex 0
-  double g[4][3];      ///< gradients of λ1..λ3 (row 0 unused)
-  bool keepOnFace[4];  ///< a point on face f belongs to this tet
-  bool flat = false;   ///< no interior: contains nothing
+  Vec3 a;                  ///< vertex 0
+  double g[4][3];          ///< gradients of λ1..λ3 (row 0 unused)
+  bool keepOnFace[4];      ///< a point on face f belongs to this tet
+  bool flat = false;       ///< no interior: contains nothing
   bool contains(const Vec3& p) const {
     const double px = p[0] - a[0], py = p[1] - a[1], pz = p[2] - a[2];
     const double l1 = g[1][0] * px + g[1][1] * py + g[1][2] * pz;
@@ -121,10 +121,8 @@ void forEachCentre(const LabelVolume& labels, const TetMesh& mesh, const std::ve
 /// A deterministic offset in [0, 1) for sub-sample (X, Y, Z) along `axis` (stratified sampling:
 /// one point at a random place in each sub-cell, so the sub-grid does not alias with voxel faces).
 double jitter(int X, int Y, int Z, int axis) {
-  uint64_t h = uint64_t(uint32_t(X)) * 0x9E3779B97F4A7C15ull ^
-               uint64_t(uint32_t(Y)) * 0xC2B2AE3D27D4EB4Full ^
-               uint64_t(uint32_t(Z)) * 0x165667B19E3779F9ull ^
-               uint64_t(axis + 1) * 0x27D4EB2F165667C5ull;
+  uint64_t h = uint64_t(uint32_t(X)) * 0x9E3779B97F4A7C15ull ^ uint64_t(uint32_t(Y)) * 0xC2B2AE3D27D4EB4Full ^
+               uint64_t(uint32_t(Z)) * 0x165667B19E3779F9ull ^ uint64_t(axis + 1) * 0x27D4EB2F165667C5ull;
   h ^= h >> 31;
   h *= 0x7FB5D329728EA185ull;
   h ^= h >> 27;
