@@ -158,9 +158,18 @@ const std::vector<Binding>& bindings() {
          "When no flip, move, peel or relabelling helps a tet below optimize_min_dihedral, a "
          "vertex is inserted in it and its neighbours of the same material and placed where the "
          "worst new tet is best (kept only when that beats the old worst). Interfaces and the outer "
-         "boundary do not change. Off: no vertex is added.", true},
+         "boundary do not change. Off: no vertex is added (no edge split either).", true},
         [](MeshingParameters& p, double x) { p.optimize.insertVertices = x != 0; },
         [](const MeshingParameters& p) { return p.optimize.insertVertices ? 1.0 : 0.0; });
+    add({"optimize_edge_split", "bool", "", "", 0, 1, "Edge split",
+         "With optimize_vertex_insertion, when inserting a vertex does not help a tet either, its "
+         "longest edge that helps is split at the midpoint together with every tet around it (any "
+         "material, so the mesh stays conformal), and the new vertex moves along its interface, "
+         "triple line or flat outer patch (within facet_distance, as optimize_interfaces moves "
+         "do), or freely inside a material; kept only when the worst tet around the edge rises. "
+         "Off: no edge is split.", true},
+        [](MeshingParameters& p, double x) { p.optimize.splitEdges = x != 0; },
+        [](const MeshingParameters& p) { return p.optimize.splitEdges ? 1.0 : 0.0; });
     add({"optimize_edge_collapse", "bool", "", "", 0, 1, "Short edge collapse",
          "An edge of a tet below optimize_min_dihedral shorter than facet_distance (two "
          "junction or interface vertices almost on top of each other) is collapsed onto one of its "
@@ -180,8 +189,9 @@ const std::vector<Binding>& bindings() {
     add({"min_fragment_voxels", "double", "voxels", "", 0, 1000, "Floating fragment removal",
          "After optimisation, pieces of the mesh connected to the rest by no face (floating "
          "elements: each is a rigid-body mode for a solver) with less volume than this many "
-         "voxels are removed, unless a material would vanish; the report counts them. 0 = keep "
-         "them.", true},
+         "voxels are removed (up to ten times this volume when a tet of the piece is below "
+         "optimize_min_dihedral: no operation can mend it), unless a material would vanish; the "
+         "report counts them. 0 = keep them.", true},
         [](MeshingParameters& p, double x) { p.optimize.minFragmentVoxels = x; },
         [](const MeshingParameters& p) { return p.optimize.minFragmentVoxels; });
     add({"optimize_interfaces", "bool", "", "", 0, 1, "Move interface vertices",

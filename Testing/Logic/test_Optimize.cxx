@@ -219,6 +219,63 @@ TEST(Optimize, RemovesFloatingFragmentsButNeverAMaterialsLastPiece) {
   EXPECT_EQ(again.t.size(), 3u);
 }
 
+// A floating piece holding a tet below the target goes up to ten times the fragment limit (no
+// operation can mend a piece whose every face is outer); a well-shaped piece that heavy stays.
+TEST(Optimize, RemovesAHeavierFloatingPieceOnlyWhenItHoldsABadTet) {
+  auto build = [](double size, double lift) {
+    // Material 1: a bulk tet; far away a lone tet of material 1 on the triangle (0,0,0),
+    // (size,0,0), (0,size,0) with its apex `lift` above the triangle's centroid (size^2 lift / 6
+    // mm^3).
+    std::vector<Vec3> p;
+    Tets t;
+    std::vector<int32_t> labels;
+    addBulkTet(p, t, labels, 100, 1);
+    for (const Vec3& q : {Vec3{0, 0, 0}, Vec3{size, 0, 0}, Vec3{0, size, 0},
+                          Vec3{size / 3, size / 3, lift}})
+      p.push_back(q);
+    std::array<int32_t, 4> T{4, 5, 6, 7};
+    orientPositively(p, T);
+    t.push_back(T);
+    labels.push_back(1);
+    return std::make_tuple(p, t, labels);
+  };
+  RunContext ctx;
+  OptimizeParameters op;
+  op.targetMinDihedral = 15;
+  op.peelDistance = 0;  // peeling would take the flat tet itself
+  op.minFragmentVoxels = 1;
+  op.voxelVolume = 0.5;  // pieces lighter than 0.5 mm^3 go; pieces with a bad tet up to 5 mm^3
+  {
+    auto [p, t, labels] = build(6, 0.3);  // 1.8 mm^3, flat
+    ASSERT_LT(minOver(p, {t[1]}), 15);
+    const auto r = optimizeTetMesh(p, t, labels, op, ctx);
+    EXPECT_EQ(r.fragments, 1u);
+    EXPECT_NEAR(r.fragmentVolume, 36 * 0.3 / 6, 1e-9);
+    EXPECT_EQ(t.size(), 1u);
+  }
+  {
+    auto [p, t, labels] = build(4, 1.8);  // 4.8 mm^3, well shaped
+    ASSERT_GE(minOver(p, {t[1]}), 15);
+    const auto r = optimizeTetMesh(p, t, labels, op, ctx);
+    EXPECT_EQ(r.fragments, 0u) << "a good piece heavier than the plain limit stays";
+    EXPECT_EQ(t.size(), 2u);
+  }
+  {
+    auto [p, t, labels] = build(12, 0.3);  // 7.2 mm^3, flat: heavier than the limit for bad pieces
+    ASSERT_LT(minOver(p, {t[1]}), 15);
+    const auto r = optimizeTetMesh(p, t, labels, op, ctx);
+    EXPECT_EQ(r.fragments, 0u);
+    EXPECT_EQ(t.size(), 2u);
+  }
+  {
+    auto [p, t, labels] = build(6, 0.3);  // the bad 1.8 mm^3 piece, the improvement off
+    op.targetMinDihedral = 0;
+    const auto r = optimizeTetMesh(p, t, labels, op, ctx);
+    EXPECT_EQ(r.fragments, 0u) << "without a target only the plain limit applies";
+    EXPECT_EQ(t.size(), 2u);
+  }
+}
+
 TEST(Optimize, RelabelsAFlatTetInsideAnotherMaterialAndThenRemovesIt) {
   // The cap (material 2) sits on the corner tet's slanted face; three tets of material 1 close it
   // in: all four of its faces are on material 1. A far bulk tet of material 2 keeps it alive.
@@ -279,6 +336,7 @@ TEST(Optimize, RelabelsASliverWhereTheNewInterfaceCannotBeCheckedOnlyWhenThinner
     op.targetMinDihedral = 20;
     op.peelDistance = 0.05;
     op.minFragmentVoxels = 0;
+    op.splitEdges = false;  // a split would halve the cap in its plane: relabelling is the subject
     const double before2 = labelVolumes(m.p, m.t, m.labels).at(2);
     const auto r = optimizeTetMesh(m.p, m.t, m.labels, op, in, ctx);
     const double cap = std::sqrt(3.0) / 2 * 0.01 / 3;
@@ -475,6 +533,41 @@ TEST(Optimize, PhantomMeshKeepsItsMaterialInterfacesAndLosesSlivers) {
               "inserted %zu\n",
               belowBefore, belowAfter, r0.tetsBelowTargetAfter, minBefore, minAfter,
               r.edgeRemovals, r.faceFlips, r.smoothedVertices, r.peeledTets, r.insertedVertices);
+}
+
+// The phantom at default settings: edge splits (on interfaces too) are what lifts the tets no
+// other operation helps; the mesh stays conformal, the material volumes stay, and fewer tets end
+// below the target than without splits.
+TEST(Optimize, EdgeSplitsOnThePhantomLiftTheTetsNothingElseHelps) {
+  const LabelVolume v = makePhantom();
+  auto run = [&](bool split) {
+    MeshingParameters p;
+    p.optimize.splitEdges = split;
+    p.run.computeFidelity = false;
+    RunContext ctx;
+    auto r = runPipeline(v, p, ctx);
+    EXPECT_TRUE(r.isOk()) << r.status().message();
+    return std::move(r).value();
+  };
+  auto count = [](const PipelineResult& r, const std::string& name) {
+    for (const auto& [key, value] : r.counts)
+      if (key == name) return value;
+    ADD_FAILURE() << "no count " << name;
+    return -1.0;
+  };
+  const PipelineResult with = run(true), without = run(false);
+  EXPECT_GT(count(with, "optimize_split_edges"), 0);
+  EXPECT_EQ(count(without, "optimize_split_edges"), 0);
+  expectConformal(with.mesh);
+  EXPECT_EQ(meshLabels(with.mesh), meshLabels(without.mesh));
+  EXPECT_LT(count(with, "optimize_tets_below_target_after"),
+            count(without, "optimize_tets_below_target_after"));
+  const auto vw = volumes(with.mesh), vo = volumes(without.mesh);
+  for (const auto& [label, vol] : vo) EXPECT_NEAR(vw.at(label), vol, 5e-3 * vol) << label;
+  std::printf("[optimize] phantom edge splits %g: below target %g -> %g, worst %.2f -> %.2f deg\n",
+              count(with, "optimize_split_edges"), count(without, "optimize_tets_below_target_after"),
+              count(with, "optimize_tets_below_target_after"),
+              count(without, "optimize_min_dihedral_after"), count(with, "optimize_min_dihedral_after"));
 }
 
 TEST(Optimize, OffLeavesTheMeshAlone) {

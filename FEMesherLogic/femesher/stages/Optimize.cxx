@@ -258,6 +258,10 @@ bool flatPatch(const Editor& m, int32_t v, double tolerance, Vec3& normal) {
   return true;
 }
 
+/// A floating piece with a tet below the target angle goes when lighter than this many times
+/// the fragment limit (OptimizeParameters::minFragmentVoxels).
+constexpr double kBadFragmentFactor = 10;
+
 /// Share of a material's volume that peeling may remove in all.
 constexpr double kPeelBudget = 4e-3;
 
@@ -439,6 +443,77 @@ bool moveVertex(Editor& m, int32_t v, const OptimizeParameters& params,
   return moved;
 }
 
+/// True when edge (u, v) lies inside one material: its ring of tets (`ring`) is closed and of
+/// one material, so no interface or outer face holds the edge.
+bool innerEdge(const Editor& m, int32_t u, int32_t v, const std::vector<uint32_t>& ring) {
+  std::vector<int32_t> link;
+  for (uint32_t s : ring) {
+    if (m.labels[s] != m.labels[ring[0]]) return false;
+    for (int32_t w : m.tets[s])
+      if (w != u && w != v) link.push_back(w);
+  }
+  std::sort(link.begin(), link.end());
+  for (size_t i = 0; i < link.size(); i += 2)
+    if (i + 1 >= link.size() || link[i] != link[i + 1] || (i + 2 < link.size() && link[i + 2] == link[i]))
+      return false;
+  return !link.empty();
+}
+
+/// Edge split: the longest edge of tet t that helps is split at its midpoint w, together with
+/// every tet around it whatever their material (so the mesh stays conformal), and w then moves
+/// by its class like any vertex (moveVertex: along its interface or triple line, within its flat
+/// outer patch, or freely inside one material). Interface triangles on the edge are halved in
+/// their own plane, so no interface moves before w does, and w's move keeps its own rules. Without
+/// interfaces to move along (or moveInterfaces off), only edges inside one material are split. Kept
+/// only when the worst of the new tets beats the worst tet around the edge; otherwise the old
+/// tets come back (the unused point is dropped at the end). True when applied.
+bool splitEdge(Editor& m, uint32_t t, const OptimizeParameters& params,
+               const OptimizeInterfaces& interfaces, std::vector<uint32_t>& fresh) {
+  const auto T = m.tets[t];
+  std::array<std::pair<double, std::pair<int32_t, int32_t>>, 6> edges;
+  int n = 0;
+  for (int i = 0; i < 4; ++i)
+    for (int j = i + 1; j < 4; ++j)
+      edges[size_t(n++)] = {-norm(sub(m.pts[size_t(T[size_t(i)])], m.pts[size_t(T[size_t(j)])])),
+                            {T[size_t(i)], T[size_t(j)]}};
+  std::sort(edges.begin(), edges.end());
+  std::vector<uint32_t> ring, made;
+  const bool surfaces = params.moveInterfaces && interfaces.enabled();
+  for (const auto& [negLength, uv] : edges) {
+    const auto [u, v] = uv;
+    m.tetsOnEdge(u, v, ring);
+    if (!surfaces && !innerEdge(m, u, v, ring)) continue;  // interfaces and boundary stay as they are
+    double oldMin = 1e300;
+    for (uint32_t s : ring) oldMin = std::min(oldMin, m.quality(s));
+    const Vec3 &U = m.pts[size_t(u)], &V = m.pts[size_t(v)];
+    const int32_t w = m.addPoint({(U[0] + V[0]) / 2, (U[1] + V[1]) / 2, (U[2] + V[2]) / 2});
+    made.clear();
+    for (uint32_t s : ring) {
+      m.kill(s);
+      for (int32_t end : {u, v}) {
+        auto half = m.tets[s];
+        for (int32_t& x : half)
+          if (x == end) x = w;
+        made.push_back(m.add(half, m.labels[s]));
+      }
+    }
+    const std::vector<double> movedBefore = m.movedVolume;
+    OptimizeResult scratch;
+    moveVertex(m, w, params, interfaces, scratch);
+    double newMin = 1e300;
+    for (uint32_t s : m.around[size_t(w)]) newMin = std::min(newMin, m.quality(s));
+    if (newMin > oldMin + kEps) {
+      fresh.insert(fresh.end(), made.begin(), made.end());
+      return true;
+    }
+    for (uint32_t s : made) m.kill(s);
+    for (uint32_t s : ring) m.revive(s);
+    m.movedVolume = movedBefore;
+    m.junctionStart.erase(w);
+  }
+  return false;
+}
+
 }  // namespace
 
 void eraseTets(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
@@ -578,6 +653,11 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
         ++r.insertedVertices;
         changed = true;
       }
+      if (!changed && inserting && params.splitEdges &&
+          splitEdge(m, t, params, interfaces, fresh)) {
+        ++r.splitEdges;
+        changed = true;
+      }
       if (changed) ++changes;
       for (uint32_t s : fresh)
         if (m.alive[s] && m.quality(s) < params.targetMinDihedral) queue.push_back(s);
@@ -610,9 +690,12 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
 
 
 /// Removes the face-connected pieces of the mesh (over all materials) lighter than `minVolume`
-/// mm^3, except a piece holding a material's last tets (and the points only they used).
+/// mm^3, or lighter than `badMinVolume` when one of their tets is below `target` degrees (a
+/// floating piece no operation could mend: every face of it is outer), except a piece holding a
+/// material's last tets (and the points only they used).
 void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
-                     std::vector<int32_t>& labels, double minVolume, OptimizeResult& r) {
+                     std::vector<int32_t>& labels, double minVolume, double badMinVolume,
+                     double target, OptimizeResult& r) {
   const size_t n = tets.size();
   if (n == 0) return;
   // Union-find over tets sharing a face (faces matched by sorting their vertex triples).
@@ -639,25 +722,29 @@ void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 
       const uint32_t a = find(faces[i].second), b = find(faces[i - 1].second);
       if (a != b) parent[a] = b;
     }
-  std::vector<double> volume(n, 0);
+  std::vector<double> volume(n, 0), worst(n, 180);
   std::vector<size_t> perLabel;
   for (uint32_t t = 0; t < n; ++t) {
     const auto& T = tets[t];
     const Vec3 &A = points[size_t(T[0])], &B = points[size_t(T[1])], &C = points[size_t(T[2])],
                &D = points[size_t(T[3])];
     volume[find(t)] += std::fabs(dot(cross(sub(B, A), sub(C, A)), sub(D, A))) / 6;
+    worst[find(t)] = std::min(worst[find(t)], tetMinDihedral(A, B, C, D));
     if (size_t(labels[t]) >= perLabel.size()) perLabel.resize(size_t(labels[t]) + 1, 0);
     ++perLabel[size_t(labels[t])];
   }
   // Lightest pieces first, so that a material keeps its largest piece when all are light.
+  auto light = [&](uint32_t root) {
+    return volume[root] < minVolume || (volume[root] < badMinVolume && worst[root] < target);
+  };
   std::vector<uint32_t> roots;
   for (uint32_t t = 0; t < n; ++t)
-    if (find(t) == t && volume[t] < minVolume) roots.push_back(t);
+    if (find(t) == t && light(t)) roots.push_back(t);
   std::sort(roots.begin(), roots.end(),
             [&](uint32_t a, uint32_t b) { return volume[a] != volume[b] ? volume[a] < volume[b] : a < b; });
   std::vector<std::vector<uint32_t>> members(n);
   for (uint32_t t = 0; t < n; ++t)
-    if (volume[find(t)] < minVolume) members[find(t)].push_back(t);
+    if (light(find(t))) members[find(t)].push_back(t);
   std::vector<char> drop(n, 0);
   for (uint32_t root : roots) {
     std::vector<size_t> take(perLabel.size(), 0);
@@ -702,7 +789,9 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
   if (params.targetMinDihedral > 0 && (r.tetsBelowTargetBefore > 0 || coarsen))
     improve(points, tets, labels, params, interfaces, ctx, r);
   if (params.minFragmentVoxels > 0)
-    removeFragments(points, tets, labels, params.minFragmentVoxels * params.voxelVolume, r);
+    removeFragments(points, tets, labels, params.minFragmentVoxels * params.voxelVolume,
+                    kBadFragmentFactor * params.minFragmentVoxels * params.voxelVolume,
+                    params.targetMinDihedral, r);
   survey(r.tetsBelowTargetAfter, r.tetsBelow5After, r.minDihedralAfter);
   ctx.progress(1.0);
   return r;
@@ -727,6 +816,7 @@ ReportCounts reportCounts(const OptimizeResult& r) {
           {"optimize_relabelled_tets", double(r.relabelledTets)},
           {"optimize_inserted_vertices", double(r.insertedVertices)},
           {"optimize_collapsed_edges", double(r.collapsedEdges)},
+          {"optimize_split_edges", double(r.splitEdges)},
           {"optimize_coarsened_vertices", double(r.coarsenedVertices)},
           {"optimize_fragments_removed", double(r.fragments)},
           {"optimize_fragment_tets", double(r.fragmentTets)},

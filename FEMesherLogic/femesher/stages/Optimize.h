@@ -53,10 +53,15 @@
 ///  - vertex insertion (insertVertices), when nothing above helps a tet: a new vertex replaces the
 ///    tet and its neighbours of the same material across unconstrained faces by a star of tets,
 ///    and moves to where the star's worst tet is best; kept only when that beats the old worst.
+///  - edge split (splitEdges), when insertion does not help either: the tet's edges, longest
+///    first, are split at their midpoint together with every tet around the edge (any
+///    material, so interface triangles on it are halved in their own plane) and the midpoint
+///    moves by its class like any vertex above; kept when the worst tet around the edge rises.
 /// Then the interior is coarsened (coarsenMinDihedral, with a size function `sizeAt`): interior
 /// vertices with an edge shorter than coarsenShortEdge × the size are collapsed onto a neighbour
 /// when the new tets stay at or above min(coarsenMinDihedral, the star's worst) (see below).
-/// Last, floating fragments (minFragmentVoxels) are removed.
+/// Last, floating fragments (minFragmentVoxels; ten times larger when they hold a tet below the
+/// target) are removed.
 /// Interface triangles change only by these moves and flips, which relabel or re-triangulate
 /// whole tets: every interface triangle stays shared by the tets of both sides,
 /// so the mesh stays conformal. The result is
@@ -89,7 +94,9 @@ struct OptimizeParameters {
   double voxelSize = 1.0;
   /// Pieces of the mesh connected to nothing else by a face (floating elements: a solver sees a
   /// rigid-body mode in each) whose volume is below this many voxels are removed, unless a
-  /// material would vanish. They are specks a thin part leaves behind; 0 = keep them.
+  /// material would vanish. They are specks a thin part leaves behind; 0 = keep them. A piece
+  /// holding a tet below targetMinDihedral goes up to ten times this volume: all its faces are
+  /// outer, so no operation can mend it, and a solver would see a bad element that floats.
   double minFragmentVoxels = 1.0;
   /// The volume of one voxel (mm^3; a run sets the product of its grid's spacings).
   double voxelVolume = 1.0;
@@ -98,6 +105,12 @@ struct OptimizeParameters {
   /// When nothing else helps a tet: insert a vertex in it and its same-material neighbours (the
   /// cavity), placed where the worst new tet is best; kept only when that beats the cavity.
   bool insertVertices = true;
+  /// In the round that inserts vertices, when inserting inside one material does not help a tet
+  /// either: split its longest edge that helps, with every tet around the edge (any material),
+  /// and move the midpoint by its class (along its interface, triple line or flat outer patch, or
+  /// freely). Edges on an interface or the outer boundary only with moveInterfaces and
+  /// OptimizeInterfaces.
+  bool splitEdges = true;
   /// Move interface and triple-line vertices along their interfaces (needs OptimizeInterfaces).
   bool moveInterfaces = true;
   /// Collapse an edge of a bad tet shorter than the facet distance (0.1 voxel
@@ -158,6 +171,7 @@ struct OptimizeResult {
   size_t relabelledTets = 0;    ///< flat interface tets given to the neighbouring material
   size_t insertedVertices = 0;  ///< vertices inserted (see insertVertices)
   size_t collapsedEdges = 0;    ///< short edges collapsed (see collapseEdges)
+  size_t splitEdges = 0;        ///< edges split (see splitEdges)
   size_t coarsenedVertices = 0; ///< interior vertices removed by coarsening (coarsenMinDihedral)
   size_t fragments = 0;         ///< floating fragments removed (see minFragmentVoxels)
   size_t fragmentTets = 0;      ///< their tets
@@ -170,7 +184,8 @@ struct OptimizeResult {
 /// optimize_smoothed_vertices, optimize_interface_vertex_moves, optimize_triple_line_vertex_moves,
 /// optimize_junction_vertex_moves,
 /// optimize_interface_flips, optimize_peeled_tets, optimize_relabelled_tets,
-/// optimize_inserted_vertices, optimize_collapsed_edges, optimize_coarsened_vertices,
+/// optimize_inserted_vertices, optimize_collapsed_edges, optimize_split_edges,
+/// optimize_coarsened_vertices,
 /// optimize_fragments_removed, optimize_fragment_tets, optimize_fragment_volume_mm3, optimize_passes.
 ReportCounts reportCounts(const OptimizeResult& result);
 
