@@ -262,6 +262,9 @@ bool flatPatch(const Editor& m, int32_t v, double tolerance, Vec3& normal) {
 /// the fragment limit (OptimizeParameters::minFragmentVoxels).
 constexpr double kBadFragmentFactor = 10;
 
+/// How many times the improvement runs a round that may insert vertices (see improve).
+constexpr int kInsertingRounds = 2;
+
 /// Share of a material's volume that peeling may remove in all.
 constexpr double kPeelBudget = 4e-3;
 
@@ -574,13 +577,21 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
   std::vector<uint32_t> queue, fresh;
   for (uint32_t t = 0; t < tets.size(); ++t)
     if (m.quality(t) < params.targetMinDihedral) queue.push_back(t);
-  // Rounds: up to `passes` regular ones (until nothing changes), then, with insertVertices, one
-  // round that may also insert vertices and a last regular one over what it changed. Insertion
-  // comes last so that it only works where nothing else helps.
+  // Rounds: up to `passes` regular ones (until nothing changes), then, with insertVertices,
+  // kInsertingRounds times a round that may also insert vertices (and split edges) over every tet
+  // still below the target followed by a regular one over what it changed. Insertion comes last
+  // so that it only works where nothing else helps; the second time round it reaches the tets
+  // the first one made or could not help.
   enum class Round { Regular, Inserting, Final, Done };
   Round round = Round::Regular;
   int regularLeft = params.passes;
-  const int totalRounds = params.passes + (params.insertVertices ? 2 : 0);
+  int insertingLeft = params.insertVertices ? kInsertingRounds : 0;
+  const int totalRounds = params.passes + 2 * insertingLeft;
+  auto everyBadTet = [&] {
+    queue.clear();
+    for (uint32_t t = 0; t < tets.size(); ++t)
+      if (m.alive[t] && m.quality(t) < params.targetMinDihedral) queue.push_back(t);
+  };
   for (int pass = 0; round != Round::Done && regularLeft > 0 && !queue.empty(); ++pass) {
     ++r.passes;
     const bool inserting = round == Round::Inserting;
@@ -665,18 +676,12 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
     ctx.checkCancel();
     std::sort(queue.begin(), queue.end());
     queue.erase(std::unique(queue.begin(), queue.end()), queue.end());
-    if (round == Round::Regular) {
-      if (--regularLeft == 0 || changes == 0) {
-        round = params.insertVertices ? Round::Inserting : Round::Done;
-        regularLeft = 1;
-        if (round == Round::Inserting) {  // every tet still below the target
-          queue.clear();
-          for (uint32_t t = 0; t < tets.size(); ++t)
-            if (m.alive[t] && m.quality(t) < params.targetMinDihedral) queue.push_back(t);
-        }
-      }
-    } else {
-      round = round == Round::Inserting ? Round::Final : Round::Done;
+    if (round == Round::Inserting) {
+      round = Round::Final;
+    } else if (round == Round::Final || --regularLeft == 0 || changes == 0) {
+      regularLeft = 1;
+      round = insertingLeft-- > 0 ? Round::Inserting : Round::Done;
+      if (round == Round::Inserting) everyBadTet();
     }
   }
   // Coarsening comes last: it never lowers the worst tet of a star it changes, so the rounds'
