@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // femesher: command-line front end of FEMesherLogic (batch meshing, inspection, Slicer CLI).
 #include "CliProgress.h"
+#include "SlicerXml.h"
 
 #include <femesher/Parameters.h>
 #include <femesher/Phantom.h>
@@ -16,6 +17,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -81,7 +83,8 @@ struct MeshOptions {
   std::string report;
   std::string saveParameters;
   bool quiet = false;
-  std::map<std::string, std::string> direct;  ///< --<parameter-key> value (one flag per parameter)
+  std::map<std::string, std::string> direct;   ///< --<parameter-key> value (one flag per parameter)
+  std::map<std::string, std::string> negated;  ///< --no-<boolean-key> [value]: key = !value
 };
 
 std::string flagName(const std::string& key) {
@@ -91,77 +94,48 @@ std::string flagName(const std::string& key) {
   return f;
 }
 
-std::string xmlEscape(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    if (c == '<') o += "&lt;";
-    else if (c == '>') o += "&gt;";
-    else if (c == '&') o += "&amp;";
-    else o += c;
-  }
-  return o;
+/// The long flag of a parameter key with underscores ("default.E" -> "default_E"): the spelling
+/// of `femesher --xml`, which Slicer passes (SEM flags allow only letters, digits and '_').
+std::string underscoreName(const std::string& key) {
+  std::string f = key;
+  for (auto& c : f)
+    if (c == '.' || c == '-') c = '_';
+  return f;
 }
 
-/// The Slicer CLI module description, generated from the parameter descriptors so that the XML
-/// and the accepted flags can never drift apart.
-std::string slicerXml() {
-  std::ostringstream x;
-  x << "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n<executable>\n"
-    << "  <category>Segmentation</category>\n  <title>FEMesher</title>\n"
-    << "  <description>Conformal multi-material tetrahedral mesh (FE-ready) from a label map: every "
-       "tet carries its material, neighbouring materials share the same interface triangles."
-       "</description>\n"
-    << "  <version>" FEMESHER_VERSION "</version>\n"
-    << "  <documentation-url>https://github.com/femesher/FEMesher</documentation-url>\n"
-    << "  <license>GPL-3.0-or-later</license>\n  <contributor>FEMesher developers</contributor>\n"
-    << "  <acknowledgements>Method after Kehl et al. (BioMesh3D particle pipeline with the "
-       "Integer Medial Axis).</acknowledgements>\n"
-    << "  <parameters>\n    <label>IO</label>\n    <description>Input label map and output mesh"
-       "</description>\n"
-    << "    <image type=\"label\">\n      <name>inputVolume</name>\n      <label>Label map</label>\n"
-       "      <channel>input</channel>\n      <index>0</index>\n"
-       "      <description>Segmentation as a label map (one integer material id per voxel)"
-       "</description>\n    </image>\n"
-    << "    <geometry type=\"model\" fileExtensions=\".vtu,.vtk\">\n      <name>outputMesh</name>\n"
-       "      <label>Tetrahedral mesh</label>\n      <channel>output</channel>\n"
-       "      <index>1</index>\n      <description>Labelled tetrahedral mesh (cell array "
-       "'labels', LPS)</description>\n    </geometry>\n"
-    << "    <string-enumeration>\n      <name>preset</name>\n      <label>Preset</label>\n"
-       "      <longflag>--preset</longflag>\n      <description>Element size preset</description>\n"
-       "      <default>default</default>\n      <element>coarse</element>\n"
-       "      <element>default</element>\n      <element>fine</element>\n"
-       "    </string-enumeration>\n  </parameters>\n";
-  for (bool advanced : {false, true}) {
-    x << "  <parameters" << (advanced ? " advanced=\"true\"" : "") << ">\n    <label>"
-      << (advanced ? "Advanced" : "Meshing") << "</label>\n    <description>"
-      << (advanced ? "Quality bounds, smoothing, material properties, run options"
-                   : "Element size and what is meshed")
-      << "</description>\n";
-    for (const auto& d : parameterDescriptors()) {
-      if (d.advanced != advanced) continue;
-      const std::string tag = d.type == "bool"     ? "boolean"
-                              : d.type == "int"    ? "integer"
-                              : d.type == "choice" ? "string-enumeration"
-                                                   : "double";
-      std::string name = d.key;
-      for (auto& c : name)
-        if (c == '.') c = '_';
-      std::string def = d.defaultValue;
-      if (d.type == "bool") def = def == "1" ? "true" : "false";
-      x << "    <" << tag << ">\n      <name>" << name << "</name>\n      <label>" << xmlEscape(d.label)
-        << "</label>\n      <longflag>--" << flagName(d.key) << "</longflag>\n      <description>"
-        << xmlEscape(d.help) << (d.unit.empty() ? "" : " Unit: " + xmlEscape(d.unit) + ".")
-        << "</description>\n      <default>" << def << "</default>\n";
-      for (const auto& c : d.choices) x << "      <element>" << c << "</element>\n";
-      if (d.type != "bool" && d.type != "choice")
-        x << "      <constraints>\n        <minimum>" << d.minimum << "</minimum>\n        <maximum>"
-          << d.maximum << "</maximum>\n      </constraints>\n";
-      x << "    </" << tag << ">\n";
-    }
-    x << "  </parameters>\n";
+/// Every spelling of a boolean parameter's flags: --k-e-y, --k_e_y, --no-k-e-y, --no_k_e_y.
+std::vector<std::string> booleanFlagSpellings() {
+  std::vector<std::string> flags;
+  for (const auto& d : parameterDescriptors()) {
+    if (d.type != "bool") continue;
+    flags.push_back("--" + flagName(d.key));
+    flags.push_back("--" + underscoreName(d.key));
+    flags.push_back("--no-" + flagName(d.key));
+    flags.push_back("--no_" + underscoreName(d.key));
   }
-  x << "</executable>\n";
-  return x.str();
+  return flags;
+}
+
+/// Slicer (and common usage) gives a true boolean as a bare flag. A boolean flag followed by a
+/// boolean word (true/false/on/off/yes/no/1/0) takes it as its value, as before; a bare one
+/// becomes `--flag=true`. Everything else is passed through unchanged.
+std::vector<std::string> expandBareBooleanFlags(const std::vector<std::string>& args) {
+  static const std::vector<std::string> flags = booleanFlagSpellings();
+  std::vector<std::string> out;
+  for (size_t i = 0; i < args.size(); ++i) {
+    if (std::find(flags.begin(), flags.end(), args[i]) == flags.end()) {
+      out.push_back(args[i]);
+      continue;
+    }
+    bool ignored = false;
+    if (i + 1 < args.size() && parseBoolean(args[i + 1], ignored)) {
+      out.push_back(args[i] + "=" + args[i + 1]);
+      ++i;
+    } else {
+      out.push_back(args[i] + "=true");
+    }
+  }
+  return out;
 }
 
 Result<MeshingParameters> buildParameters(const MeshOptions& o) {
@@ -183,6 +157,21 @@ Result<MeshingParameters> buildParameters(const MeshOptions& o) {
   }
   for (const auto& [key, value] : o.direct) {
     Status s = setParameter(params, key, value);
+    if (!s) return s;
+  }
+  for (const auto& [key, value] : o.negated) {
+    bool off = false;
+    if (!parseBoolean(value, off))
+      return Result<MeshingParameters>(ErrorCode::InvalidArgument,
+                                       "--no-" + flagName(key) + " '" + value +
+                                           "': use no value, or true/false (on/off, yes/no, 1/0)");
+    bool on = false;
+    const auto d = o.direct.find(key);
+    if (d != o.direct.end() && parseBoolean(d->second, on) && on == off)
+      return Result<MeshingParameters>(ErrorCode::InvalidArgument,
+                                       "--" + flagName(key) + " " + d->second + " and --no-" +
+                                           flagName(key) + " " + value + " contradict each other");
+    Status s = setParameter(params, key, off ? "false" : "true");
     if (!s) return s;
   }
   if (o.threads >= 0) params.run.threads = o.threads;
@@ -484,9 +473,19 @@ void addMeshOptions(CLI::App* cmd, MeshOptions& o, bool positionalOutput) {
   for (const auto& d : parameterDescriptors()) {
     const std::string key = d.key;
     if (key == "threads" || key == "seed") continue;  // dedicated options above
+    // --target-edge-length and --target_edge_length (the spelling of `--xml`, which Slicer uses).
+    std::string names = "--" + flagName(d.key);
+    if (underscoreName(d.key) != flagName(d.key)) names += ",--" + underscoreName(d.key);
     cmd->add_option_function<std::string>(
-           "--" + flagName(d.key), [&o, key](const std::string& v) { o.direct[key] = v; },
-           d.help + (d.unit.empty() ? "" : " [" + d.unit + "]"))
+           names, [&o, key](const std::string& v) { o.direct[key] = v; },
+           d.help + (d.unit.empty() ? "" : " [" + d.unit + "]") +
+               (d.type == "bool" ? " A bare flag means true." : ""))
+        ->group("Parameters");
+    if (d.type != "bool") continue;
+    cmd->add_option_function<std::string>(
+           "--no-" + flagName(d.key) + ",--no_" + underscoreName(d.key),
+           [&o, key](const std::string& v) { o.negated[key] = v; },
+           "Turn " + d.key + " off (a bare flag; --no-" + flagName(d.key) + " false turns it on).")
         ->group("Parameters");
   }
 }
@@ -502,9 +501,14 @@ int main(int argc, char** argv) {
   bool slicerStyle = argc > 1;
   for (int i = 1; i < argc; ++i)
     if (std::find(commands.begin(), commands.end(), argv[i]) != commands.end()) slicerStyle = false;
+  // Bare boolean flags (`--voxel_refinement`, `--no_voxel_refinement`) become `--flag=true`.
+  std::vector<std::string> args =
+      expandBareBooleanFlags(std::vector<std::string>(argv + 1, argv + argc));
+  std::reverse(args.begin(), args.end());  // CLI11 parses a reversed vector of the arguments
 
   CLI::App app{"FEMesher " FEMESHER_VERSION
                ": conformal multi-material tetrahedral meshes from label maps"};
+  app.name(argv[0]);
   app.set_version_flag("--version", std::string("femesher ") + FEMESHER_VERSION + " (ITK " +
                                         FEMESHER_ITK_VERSION + ", VTK " + FEMESHER_VTK_VERSION +
                                         ", CGAL " + FEMESHER_CGAL_VERSION + ", TetGen " +
@@ -516,7 +520,7 @@ int main(int argc, char** argv) {
   if (slicerStyle) {
     addMeshOptions(&app, meshOpts, true);
     try {
-      app.parse(argc, argv);
+      app.parse(args);
     } catch (const CLI::ParseError& e) {
       const int rc = app.exit(e);
       return rc == 0 ? 0 : exitCodeFor(ErrorCode::InvalidArgument);
@@ -582,16 +586,18 @@ int main(int argc, char** argv) {
   optimizeCmd->add_option("--report", optOpts.report, "Write the run report (JSON)");
   optimizeCmd->add_flag("-q,--quiet", optOpts.quiet, "Only warnings and errors");
 
+  bool paramsJson = false;
   auto* params = app.add_subcommand("parameters", "List the parameters accepted by --set");
+  params->add_flag("--json", paramsJson, "JSON output: key, type, unit, default, minimum, maximum");
 
   try {
-    app.parse(argc, argv);
+    app.parse(args);
   } catch (const CLI::ParseError& e) {
     const int rc = app.exit(e);
     return rc == 0 ? 0 : exitCodeFor(ErrorCode::InvalidArgument);
   }
   if (xml) {
-    std::fputs(slicerXml().c_str(), stdout);
+    std::fputs(cli::slicerXml().c_str(), stdout);
     return 0;
   }
   try {
@@ -602,6 +608,10 @@ int main(int argc, char** argv) {
     if (*phantom) return runPhantom(phantomOut, phantomVoxel);
     if (*medial) return runMedialAxis(maInput, maOutput, maLabel, maPrune, maGamma, maGammaConstant);
     if (*sizingCmd) return runSizing(szInput, szOutput, szOpts);
+    if (*params && paramsJson) {
+      std::printf("%s\n", parameterDescriptorsToJson().c_str());
+      return 0;
+    }
     if (*params) {
       for (const auto& d : parameterDescriptors())
         std::printf("%-24s %-7s default %-10s %-8s %s\n", d.key.c_str(), d.type.c_str(),

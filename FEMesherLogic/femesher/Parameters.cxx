@@ -37,7 +37,7 @@ const std::vector<Binding>& bindings() {
       d.defaultValue = fmt(g(MeshingParameters{}));
       v.push_back({std::move(d), std::move(s), std::move(g)});
     };
-    add({"min_voxels", "int", "voxels", "", 1, 1e12, "Smallest label kept",
+    add({"min_voxels", "int", "voxels", "", 1, 1e6, "Smallest label kept",
          "Labels with fewer voxels are dropped (their voxels join the most common neighbouring "
          "label) with a warning naming them; every other label appears in the mesh.", false},
         [](MeshingParameters& p, double x) { p.preprocess.minVoxels = int64_t(x); },
@@ -120,7 +120,7 @@ const std::vector<Binding>& bindings() {
          "may not terminate.", true},
         [](MeshingParameters& p, double x) { p.volume.minDihedralAngle = x; },
         [](const MeshingParameters& p) { return p.volume.minDihedralAngle; });
-    add({"max_tet_volume", "double", "mm^3", "", 0, 1e12, "Largest element volume",
+    add({"max_tet_volume", "double", "mm^3", "", 0, 1e9, "Largest element volume",
          "Upper bound on the volume of any tet in mm^3 (TetGen -a). 0 = no bound.", true},
         [](MeshingParameters& p, double x) { p.volume.maxTetVolume = x; },
         [](const MeshingParameters& p) { return p.volume.maxTetVolume; });
@@ -272,9 +272,10 @@ const Binding* findBinding(const std::string& key) {
 
 bool parseNumber(const std::string& text, const std::string& type, double& out) {
   if (type == "bool") {
-    if (text == "true" || text == "on" || text == "yes" || text == "1") { out = 1; return true; }
-    if (text == "false" || text == "off" || text == "no" || text == "0") { out = 0; return true; }
-    return false;
+    bool b = false;
+    if (!parseBoolean(text, b)) return false;
+    out = b ? 1 : 0;
+    return true;
   }
   if (text.empty()) return false;
   char* end = nullptr;
@@ -338,6 +339,18 @@ Status setMaterialParameter(MeshingParameters& params, const std::string& key,
 }
 
 }  // namespace
+
+bool parseBoolean(const std::string& text, bool& value) {
+  if (text == "true" || text == "on" || text == "yes" || text == "1") {
+    value = true;
+    return true;
+  }
+  if (text == "false" || text == "off" || text == "no" || text == "0") {
+    value = false;
+    return true;
+  }
+  return false;
+}
 
 std::string sizingModeName(SizingMode m) { return m == SizingMode::Adaptive ? "adaptive" : "uniform"; }
 
@@ -447,6 +460,33 @@ std::string parametersToJson(const MeshingParameters& params) {
     mats[std::to_string(label)]["exclude"] = exclusionName(how);
   j["materials"] = mats;
   return j.dump(2);
+}
+
+std::string parameterDescriptorsToJson() {
+  json list = json::array();
+  for (const auto& d : parameterDescriptors()) {
+    json j = {{"key", d.key},     {"type", d.type},   {"unit", d.unit},
+              {"label", d.label}, {"help", d.help},   {"advanced", d.advanced}};
+    const Binding* b = findBinding(d.key);
+    if (b) {
+      const double v = b->get(MeshingParameters{});
+      if (d.type == "bool") j["default"] = v != 0;
+      else if (d.type == "int") j["default"] = int64_t(v);
+      else j["default"] = v;
+      if (d.type == "int") {
+        j["minimum"] = int64_t(d.minimum);
+        j["maximum"] = int64_t(d.maximum);
+      } else if (d.type == "double") {
+        j["minimum"] = d.minimum;
+        j["maximum"] = d.maximum;
+      }
+    } else {
+      j["default"] = d.defaultValue;
+      j["choices"] = d.choices;
+    }
+    list.push_back(j);
+  }
+  return list.dump(2);
 }
 
 Result<MeshingParameters> parametersFromJson(const std::string& text,

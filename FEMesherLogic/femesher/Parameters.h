@@ -76,6 +76,17 @@ struct ParameterDescriptor {
 
 const std::vector<ParameterDescriptor>& parameterDescriptors();
 
+/// Every settable parameter as a JSON array (what `femesher parameters --json` prints): objects
+/// with key, type, unit, label, help, advanced and the default as a JSON value of the parameter's
+/// type (bool, integer, double, or text for "choice"); numbers also carry their inclusive
+/// minimum and maximum, choices their list of values. Doubles are written so that they read back
+/// bit for bit.
+std::string parameterDescriptorsToJson();
+
+/// Boolean text as `--set` and the CLI flags accept it: true/on/yes/1 and false/off/no/0.
+/// Returns false (and leaves `value` alone) for anything else.
+bool parseBoolean(const std::string& text, bool& value);
+
 /// Set one parameter from text ("target_edge_length", "1.5"). Also accepts
 /// "material.<label>.E", "material.<label>.nu", "material.<label>.density", "default.E", ...
 /// and "material.<label>.exclude" = "background" | "merge" | "no" (see Exclusion).

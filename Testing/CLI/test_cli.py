@@ -107,7 +107,8 @@ check(r.returncode == 0 and os.path.exists(size) and "target edge length" in r.s
 r = run("info", size)
 check(r.returncode == EXIT["not-a-label-map"], "the sizing field is a float image in mm (not labels)")
 
-# --- every XML flag is accepted (Slicer style: flags, then input, output) ----------------------
+# --- every XML flag is accepted with an explicit value, booleans too (flags, then input, output;
+# the exact command line Slicer builds, bare boolean flags included, is in test_slicer_cli.py) ----
 small = os.path.join(TMP, "ball.nrrd")
 write_nrrd(small, (16, 16, 16), ball_values(16))
 args = []

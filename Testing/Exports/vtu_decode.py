@@ -1,8 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """A small independent decoder of VTK XML unstructured grids (.vtu) as VTK writes them (appended
-data, base64 or raw, optionally zlib-compressed), including string field data, which meshio
-cannot parse. Used to check the .vtu export without VTK, and to give meshio a copy of the file
-without the string field data."""
+data, base64 or raw, optionally zlib-compressed; String arrays too), used to check the .vtu export
+without VTK or meshio."""
 import base64
 import re
 import xml.etree.ElementTree as ET
@@ -87,11 +86,3 @@ def read_vtu(path):
     field_names = [a.get("Name") for a in root.iter("FieldData") for a in a]
     return root, values, {k: values[k] for k in field_names}
 
-
-def without_field_data(src, dst):
-    """Copy of `src` without its <FieldData> block (appended offsets stay valid)."""
-    raw = open(src, "rb").read()
-    a, b = raw.find(b"<FieldData>"), raw.find(b"</FieldData>")
-    if a >= 0 and b > a:
-        raw = raw[:a] + raw[b + len(b"</FieldData>"):]
-    open(dst, "wb").write(raw)

@@ -6,6 +6,14 @@
 #include <femesher/io/MeshIO.h>
 
 #include <gtest/gtest.h>
+#include <vtkCellData.h>
+#include <vtkDataArray.h>
+#include <vtkFieldData.h>
+#include <vtkIntArray.h>
+#include <vtkNew.h>
+#include <vtkUnstructuredGrid.h>
+#include <vtkUnstructuredGridReader.h>
+#include <vtkXMLUnstructuredGridReader.h>
 
 #include <algorithm>
 #include <cmath>
@@ -178,12 +186,59 @@ TEST(MeshIO, WritesEveryFormatAndReadsBackExactly) {
   auto vtu = readMesh(dir + "/two.vtu");
   EXPECT_EQ(vtu->materials[1].name, m.materials[1].name);
   EXPECT_EQ(vtu->materials[1].color, m.materials[1].color);
-  // VTU field data is in the file (appended binary, but the array names are in the XML header).
+  // VTU field data is in the file (appended binary, but the array names are in the XML header),
+  // all of it numeric (meshio cannot parse String arrays) and without a SPACE tag.
   const std::string vtuText = slurp(dir + "/two.vtu");
-  for (const char* name : {"\"SPACE\"", "\"MaterialIds\"", "\"MaterialNames\"", "\"FEMesherVersion\"",
+  for (const char* name : {"\"MaterialIds\"", "\"MaterialNames\"", "\"FEMesherVersion\"",
                            "\"Provenance\"", "\"labels\""})
     EXPECT_NE(vtuText.find(name), std::string::npos) << name;
+  EXPECT_EQ(vtuText.find("\"SPACE\""), std::string::npos);
+  EXPECT_EQ(vtuText.find("type=\"String\""), std::string::npos);
   EXPECT_NE(slurp(dir + "/two.vtk").find("SPACE=LPS"), std::string::npos);
+}
+
+// What 3D Slicer's model storage node gets from our files, read with VTK's own readers (the ones
+// vtkMRMLModelStorageNode uses): the tets, their int cell array `labels`, and for the coordinate
+// system either nothing in the .vtu (Slicer then takes the file as LPS: it reads a SPACE tag only
+// from a vtkStringArray, which meshio cannot parse) or the legacy header "SPACE=LPS" in the .vtk.
+TEST(MeshIO, VtkReadersLoadTheFilesAsSlicerDoes) {
+  const TetMesh m = twoMaterialCube();
+  const std::string dir = tmpDir();
+  ASSERT_TRUE(writeMesh(m, dir + "/slicer.vtu").isOk());
+  ASSERT_TRUE(writeMesh(m, dir + "/slicer.vtk").isOk());
+  auto checkGrid = [&](vtkUnstructuredGrid* g, const char* what) {
+    ASSERT_NE(g, nullptr) << what;
+    ASSERT_EQ(g->GetNumberOfPoints(), vtkIdType(m.points.size())) << what;
+    ASSERT_EQ(g->GetNumberOfCells(), vtkIdType(m.tets.size())) << what;
+    for (vtkIdType i = 0; i < g->GetNumberOfPoints(); ++i) {
+      double p[3];
+      g->GetPoint(i, p);
+      for (int k = 0; k < 3; ++k) ASSERT_EQ(p[k], m.points[size_t(i)][k]) << what << " point " << i;
+    }
+    auto* labels = vtkIntArray::SafeDownCast(g->GetCellData()->GetArray("labels"));
+    ASSERT_NE(labels, nullptr) << what << ": int cell array 'labels'";
+    for (vtkIdType c = 0; c < g->GetNumberOfCells(); ++c) {
+      ASSERT_EQ(g->GetCellType(c), VTK_TETRA) << what;
+      ASSERT_EQ(labels->GetValue(c), m.tetLabels[size_t(c)]) << what << " tet " << c;
+    }
+    vtkFieldData* fd = g->GetFieldData();
+    EXPECT_EQ(fd->GetAbstractArray("SPACE"), nullptr) << what;
+    for (int a = 0; a < fd->GetNumberOfArrays(); ++a)
+      EXPECT_NE(vtkDataArray::SafeDownCast(fd->GetAbstractArray(a)), nullptr)
+          << what << ": field array " << fd->GetAbstractArray(a)->GetName() << " is not numeric";
+  };
+  vtkNew<vtkXMLUnstructuredGridReader> xml;
+  xml->SetFileName((dir + "/slicer.vtu").c_str());
+  xml->Update();
+  EXPECT_EQ(xml->GetErrorCode(), 0);
+  checkGrid(xml->GetOutput(), ".vtu");
+  EXPECT_NE(xml->GetOutput()->GetFieldData()->GetAbstractArray("MaterialNames"), nullptr);
+  vtkNew<vtkUnstructuredGridReader> legacy;
+  legacy->SetFileName((dir + "/slicer.vtk").c_str());
+  legacy->Update();
+  checkGrid(legacy->GetOutput(), ".vtk");
+  ASSERT_NE(legacy->GetHeader(), nullptr);
+  EXPECT_NE(std::string(legacy->GetHeader()).find("SPACE=LPS"), std::string::npos);
 }
 
 TEST(MeshIO, NonPositiveLabelsRoundTrip) {

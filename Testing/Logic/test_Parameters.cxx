@@ -5,6 +5,7 @@
 #include <femesher/Types.h>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <set>
 #include <thread>
@@ -23,6 +24,54 @@ TEST(Parameters, SetAndGetEveryDescriptor) {
   EXPECT_DOUBLE_EQ(p.sizing.targetEdgeLength, 1.5);
   ASSERT_TRUE(setParameter(p, "preserve_interfaces", "off").isOk());
   EXPECT_FALSE(p.volume.preserveInterfaces);
+}
+
+TEST(Parameters, BooleanWords) {
+  bool b = false;
+  for (const char* t : {"true", "on", "yes", "1"}) {
+    b = false;
+    EXPECT_TRUE(parseBoolean(t, b)) << t;
+    EXPECT_TRUE(b) << t;
+  }
+  for (const char* f : {"false", "off", "no", "0"}) {
+    b = true;
+    EXPECT_TRUE(parseBoolean(f, b)) << f;
+    EXPECT_FALSE(b) << f;
+  }
+  b = true;
+  for (const char* bad : {"", "True", "2", "input.nrrd", "--x"}) {
+    EXPECT_FALSE(parseBoolean(bad, b)) << bad;
+    EXPECT_TRUE(b) << "left alone on " << bad;
+  }
+}
+
+TEST(Parameters, DescriptorJsonHoldsTheRegistryExactly) {
+  const auto j = nlohmann::json::parse(parameterDescriptorsToJson());
+  const auto& descriptors = parameterDescriptors();
+  ASSERT_EQ(j.size(), descriptors.size());
+  const MeshingParameters defaults;
+  for (size_t i = 0; i < descriptors.size(); ++i) {
+    const auto& d = descriptors[i];
+    const auto& e = j[i];
+    EXPECT_EQ(e["key"], d.key);
+    EXPECT_EQ(e["type"], d.type);
+    if (d.type == "bool") {
+      ASSERT_TRUE(e["default"].is_boolean()) << d.key;
+      EXPECT_EQ(e["default"].get<bool>() ? "true" : "false", getParameter(defaults, d.key));
+    } else if (d.type == "choice") {
+      EXPECT_EQ(e["default"], getParameter(defaults, d.key));
+      EXPECT_EQ(e["choices"].get<std::vector<std::string>>(), d.choices);
+    } else {
+      // The default, set back through setParameter as JSON text, gives the same parameters.
+      MeshingParameters p;
+      ASSERT_TRUE(setParameter(p, d.key, e["default"].dump()).isOk()) << d.key;
+      EXPECT_EQ(getParameter(p, d.key), getParameter(defaults, d.key)) << d.key;
+      EXPECT_EQ(e["minimum"].get<double>(), d.minimum) << d.key;
+      EXPECT_EQ(e["maximum"].get<double>(), d.maximum) << d.key;
+      EXPECT_EQ(e["default"].is_number_integer(), d.type == "int") << d.key;
+      EXPECT_TRUE(setParameter(p, d.key, e["maximum"].dump()).isOk()) << d.key;
+    }
+  }
 }
 
 TEST(Parameters, RejectsUnknownKeysAndBadValues) {

@@ -19,6 +19,7 @@
 #include <vtkPointData.h>
 #include <vtkPoints.h>
 #include <vtkStringArray.h>
+#include <vtkUnsignedCharArray.h>
 #include <vtkUnsignedShortArray.h>
 #include <vtkUnstructuredGrid.h>
 
@@ -49,9 +50,23 @@ TetMesh obliqueMesh() {
   return m;
 }
 
-std::string stringValue(vtkFieldData* fd, const char* name) {
-  auto* a = vtkStringArray::SafeDownCast(fd->GetAbstractArray(name));
-  return a && a->GetNumberOfValues() == 1 ? a->GetValue(0) : std::string("<missing>");
+/// The strings of a text field array (UInt8: UTF-8 bytes, each string followed by a 0 byte).
+std::vector<std::string> textValues(vtkFieldData* fd, const char* name) {
+  auto* a = vtkUnsignedCharArray::SafeDownCast(fd->GetAbstractArray(name));
+  if (!a) return {"<missing>"};
+  std::vector<std::string> out(1);
+  for (vtkIdType k = 0; k < a->GetNumberOfValues(); ++k) {
+    if (a->GetValue(k) == 0) out.emplace_back();
+    else out.back() += char(a->GetValue(k));
+  }
+  if (!out.back().empty()) return {"<not 0-terminated>"};
+  out.pop_back();
+  return out;
+}
+
+std::string textValue(vtkFieldData* fd, const char* name) {
+  const auto v = textValues(fd, name);
+  return v.size() == 1 ? v[0] : std::string("<not one string>");
 }
 
 /// Fills the top three rows of `m`; the last row stays 0 0 0 1.
@@ -128,18 +143,22 @@ TEST(VtkConversion, FieldDataIsWhatTheVtuWriterStores) {
   options.provenance = "femesher test";
   meshToVtkGrid(m, grid, options);
   vtkFieldData* fd = grid->GetFieldData();
-  EXPECT_EQ(stringValue(fd, "SPACE"), "LPS");
-  EXPECT_EQ(stringValue(fd, "FEMesherVersion"), FEMESHER_VERSION);
-  EXPECT_EQ(stringValue(fd, "Provenance"), "femesher test");
+  // Only numeric arrays (meshio cannot parse VTK's string arrays), hence no SPACE tag (Slicer
+  // reads it only as a string array and takes a file without one as LPS).
+  EXPECT_EQ(fd->GetAbstractArray("SPACE"), nullptr);
+  for (int a = 0; a < fd->GetNumberOfArrays(); ++a)
+    EXPECT_NE(vtkDataArray::SafeDownCast(fd->GetAbstractArray(a)), nullptr)
+        << fd->GetAbstractArray(a)->GetName() << " is not a numeric array";
+  EXPECT_EQ(textValue(fd, "FEMesherVersion"), FEMESHER_VERSION);
+  EXPECT_EQ(textValue(fd, "Provenance"), "femesher test");
   auto* ids = vtkIntArray::SafeDownCast(fd->GetAbstractArray("MaterialIds"));
-  auto* names = vtkStringArray::SafeDownCast(fd->GetAbstractArray("MaterialNames"));
   auto* colors = vtkDoubleArray::SafeDownCast(fd->GetAbstractArray("MaterialColors"));
-  ASSERT_TRUE(ids && names && colors);
+  ASSERT_TRUE(ids && colors);
   ASSERT_EQ(ids->GetNumberOfValues(), 2);  // ascending: -2, 7
   EXPECT_EQ(ids->GetValue(0), -2);
   EXPECT_EQ(ids->GetValue(1), 7);
-  EXPECT_EQ(names->GetValue(0), "label -2");
-  EXPECT_EQ(names->GetValue(1), "cortical bone");
+  EXPECT_EQ(textValues(fd, "MaterialNames"),
+            (std::vector<std::string>{"label -2", "cortical bone"}));
   ASSERT_EQ(colors->GetNumberOfComponents(), 3);
   EXPECT_EQ(colors->GetComponent(1, 0), 0.9);
   EXPECT_EQ(colors->GetComponent(0, 2), defaultLabelColor(-2)[2]);
@@ -147,7 +166,7 @@ TEST(VtkConversion, FieldDataIsWhatTheVtuWriterStores) {
   options.provenance.clear();
   meshToVtkGrid(m, grid, options);
   EXPECT_EQ(grid->GetFieldData()->GetAbstractArray("Provenance"), nullptr);
-  EXPECT_EQ(grid->GetFieldData()->GetNumberOfArrays(), 5);
+  EXPECT_EQ(grid->GetFieldData()->GetNumberOfArrays(), 4);
 }
 
 TEST(VtkConversion, GridIsResetBeforeItIsFilled) {
@@ -174,7 +193,7 @@ TEST(VtkConversion, RasFrameNegatesXAndYAndKeepsTetOrientation) {
   options.frame = VtkFrame::RAS;
   options.fieldData = true;
   meshToVtkGrid(m, grid, options);
-  EXPECT_EQ(stringValue(grid->GetFieldData(), "SPACE"), "RAS");
+  EXPECT_EQ(grid->GetFieldData()->GetAbstractArray("SPACE"), nullptr);
   double p[3];
   grid->GetPoint(0, p);
   EXPECT_EQ(p[0], -m.points[0][0]);
@@ -208,6 +227,19 @@ TEST(VtkConversion, RoundTripKeepsMeshAndMaterialTable) {
   EXPECT_EQ(back->materials[0].name, "label -2");
   EXPECT_EQ(back->materials[1].name, "cortical bone");
   EXPECT_EQ(back->materials[1].color, m.materials[0].color);
+  // Files written before 0-terminated UInt8 text held the names in a vtkStringArray: still read.
+  {
+    vtkNew<vtkStringArray> oldNames;
+    oldNames->SetName("MaterialNames");
+    oldNames->InsertNextValue("old -2");
+    oldNames->InsertNextValue("old 7");
+    grid->GetFieldData()->RemoveArray("MaterialNames");
+    grid->GetFieldData()->AddArray(oldNames);
+    auto fromOld = vtkGridToMesh(grid, "memory");
+    ASSERT_TRUE(fromOld.isOk()) << fromOld.status().message();
+    EXPECT_EQ(fromOld->materials[0].name, "old -2");
+    EXPECT_EQ(fromOld->materials[1].name, "old 7");
+  }
   // Without field data: default names and colours.
   meshToVtkGrid(m, grid);
   back = vtkGridToMesh(grid, "memory");

@@ -2,8 +2,10 @@
 #pragma once
 /// \file MeshIO.h
 /// Writing (and reading back) labelled tet meshes. The format follows the extension:
-///  - .vtu  VTK XML unstructured grid; cell array `labels` (int32 user ids), field data
-///          `SPACE` = "LPS", `MaterialIds`/`MaterialNames`, `FEMesherVersion`.
+///  - .vtu  VTK XML unstructured grid; cell array `labels` (int32 user ids), numeric field data
+///          only (meshio reads it): `MaterialIds`, `MaterialNames` (UTF-8 text as UInt8),
+///          `MaterialColors`, `FEMesherVersion`, `Provenance` (VtkConversion.h). No `SPACE` tag:
+///          Slicer takes a model file without one as LPS.
 ///  - .inp  Abaqus/CalculiX: C3D4, an ELSET + *SOLID SECTION + named *MATERIAL (*ELASTIC,
 ///          *DENSITY) per material, NSET `BOUNDARY` (outer boundary nodes), an element-based
 ///          *SURFACE per material interface and per material's outer boundary.
@@ -12,7 +14,8 @@
 ///  - .mesh Medit (INRIA) ASCII: tets with material refs, interface triangles with refs.
 ///  - .feb  FEBio 2.5 model: nodes, a solid domain per material, materials (neo-Hookean from E/nu).
 ///  - .stl  ASCII STL: one `solid` per interface (outward from the lower label).
-///  - .vtk  legacy VTK (binary, Slicer's "SPACE=LPS" header) for readers without string field data.
+///  - .vtk  legacy VTK (binary, Slicer's "SPACE=LPS" header, which Slicer reads): cell array
+///          `labels`, no field data.
 /// All writers are atomic (temporary file + rename). Coordinates are written in LPS mm.
 
 #include <femesher/Parameters.h>

@@ -15,9 +15,12 @@
 #include <vtkPointData.h>
 #include <vtkPoints.h>
 #include <vtkStringArray.h>
+#include <vtkUnsignedCharArray.h>
 #include <vtkUnstructuredGrid.h>
 
 #include <cmath>
+#include <string>
+#include <vector>
 
 namespace femesher {
 
@@ -30,48 +33,71 @@ Vec3 toFrame(const Vec3& p, VtkFrame frame) {
   return frame == VtkFrame::RAS ? Vec3{{-p[0], -p[1], p[2]}} : p;
 }
 
-void addString(vtkFieldData* fd, const char* name, const std::string& value) {
-  vtkNew<vtkStringArray> a;
+/// Text as a UInt8 field array: the UTF-8 bytes of each string, each followed by a 0 byte.
+/// VTK's text arrays (vtkStringArray) are avoided on purpose: meshio cannot read them.
+void addText(vtkFieldData* fd, const char* name, const std::vector<std::string>& strings) {
+  vtkNew<vtkUnsignedCharArray> a;
   a->SetName(name);
-  a->InsertNextValue(value);
+  for (const auto& s : strings) {
+    for (char c : s) a->InsertNextValue(static_cast<unsigned char>(c));
+    a->InsertNextValue(0);
+  }
   fd->AddArray(a);
 }
 
+/// The strings of a field array written by `addText`; empty when there is none.
+std::vector<std::string> readText(vtkFieldData* fd, const char* name) {
+  std::vector<std::string> out;
+  auto* a = vtkUnsignedCharArray::SafeDownCast(fd ? fd->GetAbstractArray(name) : nullptr);
+  if (!a || a->GetNumberOfComponents() != 1) return out;
+  std::string cur;
+  for (vtkIdType k = 0; k < a->GetNumberOfValues(); ++k) {
+    const unsigned char c = a->GetValue(k);
+    if (c == 0) {
+      out.push_back(cur);
+      cur.clear();
+    } else {
+      cur += static_cast<char>(c);
+    }
+  }
+  return out;
+}
+
 void addFieldData(const TetMesh& m, const VtkGridOptions& o, vtkFieldData* fd) {
-  addString(fd, "SPACE", o.frame == VtkFrame::RAS ? "RAS" : "LPS");
   vtkNew<vtkIntArray> ids;
   ids->SetName("MaterialIds");
-  vtkNew<vtkStringArray> names;
-  names->SetName("MaterialNames");
+  std::vector<std::string> names;
   vtkNew<vtkDoubleArray> colors;
   colors->SetName("MaterialColors");
   colors->SetNumberOfComponents(3);
   for (int32_t l : meshio::meshLabels(m)) {
     const Material* mat = findMaterial(m.materials, l);
     ids->InsertNextValue(l);
-    names->InsertNextValue(meshio::materialName(m, l));
+    names.push_back(meshio::materialName(m, l));
     const auto c = mat ? mat->color : defaultLabelColor(l);
     colors->InsertNextTuple(c.data());
   }
   fd->AddArray(ids);
-  fd->AddArray(names);
+  addText(fd, "MaterialNames", names);
   fd->AddArray(colors);
-  addString(fd, "FEMesherVersion", FEMESHER_VERSION);
-  if (!o.provenance.empty()) addString(fd, "Provenance", o.provenance);
+  addText(fd, "FEMesherVersion", {FEMESHER_VERSION});
+  if (!o.provenance.empty()) addText(fd, "Provenance", {o.provenance});
 }
 
 /// Material names and colours from the field data written by `addFieldData`.
 void readFieldData(vtkFieldData* fd, std::map<int32_t, std::string>& names,
                    std::map<int32_t, std::array<double, 3>>& colors) {
   auto* idArr = vtkIntArray::SafeDownCast(fd ? fd->GetAbstractArray("MaterialIds") : nullptr);
-  auto* nameArr =
-      vtkStringArray::SafeDownCast(fd ? fd->GetAbstractArray("MaterialNames") : nullptr);
+  // Names: UInt8 text (addText); files of earlier versions hold a vtkStringArray.
+  std::vector<std::string> nameList = readText(fd, "MaterialNames");
+  auto* old = vtkStringArray::SafeDownCast(fd ? fd->GetAbstractArray("MaterialNames") : nullptr);
+  if (old)
+    for (vtkIdType k = 0; k < old->GetNumberOfValues(); ++k) nameList.push_back(old->GetValue(k));
   auto* colorArr =
       vtkDataArray::SafeDownCast(fd ? fd->GetAbstractArray("MaterialColors") : nullptr);
   if (!idArr) return;
   for (vtkIdType k = 0; k < idArr->GetNumberOfValues(); ++k) {
-    if (nameArr && k < nameArr->GetNumberOfValues())
-      names[idArr->GetValue(k)] = nameArr->GetValue(k);
+    if (size_t(k) < nameList.size()) names[idArr->GetValue(k)] = nameList[size_t(k)];
     if (colorArr && colorArr->GetNumberOfComponents() == 3 && k < colorArr->GetNumberOfTuples()) {
       double c[3];
       colorArr->GetTuple(k, c);

@@ -53,8 +53,8 @@ Status writeVtu(const TetMesh& m, const std::string& path, const ExportOptions& 
   });
 }
 
-/// Legacy VTK 4.2 with Slicer's header convention ("3D Slicer output. SPACE=LPS"): read by Slicer,
-/// ParaView and readers that do not understand string field data (meshio).
+/// Legacy VTK 4.2 with Slicer's header convention ("3D Slicer output. SPACE=LPS"), which Slicer
+/// reads to place the mesh; read by ParaView and meshio too.
 Status writeLegacyVtk(const TetMesh& m, const std::string& path, const ExportOptions&) {
   vtkNew<vtkUnstructuredGrid> ug;
   meshToVtkGrid(m, ug);
