@@ -105,6 +105,17 @@ std::string xmlEscape(const std::string& s) {
   return o;
 }
 
+/// `s` as the inside of a JSON string (names come from files and users: quotes, backslashes).
+std::string jsonText(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    if (c == '"' || c == '\\') o += '\\';
+    if (static_cast<unsigned char>(c) < 0x20) o += ' ';
+    else o += c;
+  }
+  return o;
+}
+
 /// The Slicer CLI module description, generated from the parameter descriptors so that the XML
 /// and the accepted flags can never drift apart.
 std::string slicerXml() {
@@ -340,7 +351,7 @@ int runInfo(const std::string& input, const std::string& labelNames, bool asJson
     os << "],\n  \"labels\": [";
     for (size_t i = 0; i < s.labels.size(); ++i) {
       const auto& l = s.labels[i];
-      os << (i ? ",\n" : "\n") << "    {\"id\": " << l.id << ", \"name\": \"" << l.name
+      os << (i ? ",\n" : "\n") << "    {\"id\": " << l.id << ", \"name\": \"" << jsonText(l.name)
          << "\", \"voxels\": " << l.voxels << ", \"volume_mm3\": " << l.volumeMm3
          << ", \"components\": " << l.components << "}";
     }

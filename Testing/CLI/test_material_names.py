@@ -124,6 +124,14 @@ check(r.returncode == 2 and "names none of the labels" in r.stderr and "40, 41" 
       and not os.path.exists(p("other.inp")), "a colour table for another map: exit 2, both label lists")
 r = run("info", phantom, "--label-names", p("missing.ctbl"))
 check(r.returncode == 3, "a missing colour table: exit 3")
+csv = p("phantom.csv")
+with open(csv, "w") as f:
+    f.write('LabelValue,Name,Color_R,Color_G,Color_B,Color_A\n1,"bone, cortical",241,214,145,255\n'
+            "5,Ti\\6Al stem,200,200,235,255\n")
+r = run("info", phantom, "--label-names", csv, "--json")
+got = {l["id"]: l["name"] for l in json.loads(r.stdout)["labels"]} if r.returncode == 0 else {}
+check(got.get(1) == "bone, cortical" and got.get(5) == "Ti\\6Al stem" and got.get(2) == "trabecular bone",
+      "Slicer CSV table: info --json stays valid JSON with a comma and a backslash in names %s" % got)
 
 # --- the real knee with a 3D Slicer colour table ------------------------------------------------
 knee = os.path.join(DATA, "9135902_00m_WB01.nii.gz")
