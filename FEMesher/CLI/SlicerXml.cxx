@@ -143,7 +143,12 @@ std::string slicerXml() {
     << "    <geometry type=\"model\" fileExtensions=\".vtu,.vtk\">\n      <name>outputMesh</name>\n"
        "      <label>Tetrahedral mesh</label>\n      <channel>output</channel>\n"
        "      <index>1</index>\n      <description>Labelled tetrahedral mesh (cell array "
-       "'labels', LPS)</description>\n    </geometry>\n  </parameters>\n";
+       "'labels', LPS)</description>\n    </geometry>\n"
+    << "    <file fileExtensions=\".ctbl,.txt,.csv,.label\">\n      <name>labelNames</name>\n"
+       "      <label>Label names</label>\n      <longflag>--label_names</longflag>\n"
+       "      <channel>input</channel>\n      <description>Optional colour table naming the "
+       "labels (3D Slicer .ctbl or .csv, ITK-SNAP label description); the names go into every "
+       "mesh format that holds names</description>\n    </file>\n  </parameters>\n";
   for (bool advanced : {false, true}) {
     x << "  <parameters" << (advanced ? " advanced=\"true\"" : "") << ">\n    <label>"
       << (advanced ? "Advanced" : "Meshing") << "</label>\n    <description>"

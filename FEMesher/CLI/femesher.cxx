@@ -6,9 +6,11 @@
 #include <femesher/Parameters.h>
 #include <femesher/Phantom.h>
 #include <femesher/Pipeline.h>
+#include <femesher/RunReport.h>
 #include <femesher/Version.h>
 #include <femesher/io/AtomicFile.h>
 #include <femesher/io/LabelMapIO.h>
+#include <femesher/io/LabelTable.h>
 #include <femesher/io/MeshIO.h>
 #include <femesher/stages/Fidelity.h>
 #include <femesher/stages/MedialAxis.h>
@@ -82,6 +84,7 @@ struct MeshOptions {
   long long seed = -1;
   std::string report;
   std::string saveParameters;
+  std::string labelNames;  ///< colour table naming the labels (--label-names)
   bool quiet = false;
   std::map<std::string, std::string> direct;   ///< --<parameter-key> value (one flag per parameter)
   std::map<std::string, std::string> negated;  ///< --no-<boolean-key> [value]: key = !value
@@ -101,6 +104,17 @@ std::string underscoreName(const std::string& key) {
   for (auto& c : f)
     if (c == '.' || c == '-') c = '_';
   return f;
+}
+
+/// `s` as the inside of a JSON string (names come from files and users: quotes, backslashes).
+std::string jsonText(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    if (c == '"' || c == '\\') o += '\\';
+    if (static_cast<unsigned char>(c) < 0x20) o += ' ';
+    else o += c;
+  }
+  return o;
 }
 
 /// Every spelling of a boolean parameter's flags: --k-e-y, --k_e_y, --no-k-e-y, --no_k_e_y.
@@ -183,6 +197,17 @@ Result<MeshingParameters> buildParameters(const MeshOptions& o) {
 int writeRunOutputs(const PipelineResult& result, const MeshingParameters& params,
                     const MeshOptions& o, const std::string& source, cli::CliProgress& progress);
 
+/// Reads a label map and, with `labelNames`, names its materials from that colour table.
+Result<LabelVolume> readNamedLabelMap(const std::string& input, const std::string& labelNames) {
+  auto volume = readLabelMap(input);
+  if (!volume || labelNames.empty()) return volume;
+  auto table = readLabelTable(labelNames);
+  if (!table) return table.status();
+  LabelVolume v = std::move(volume).value();
+  if (Status s = applyLabelTable(v, table.value(), labelNames); !s) return s;
+  return v;
+}
+
 /// A run context showing its progress on `progress` and cancelled by Ctrl-C / SIGTERM while it
 /// lives.
 struct CancellableRun {
@@ -213,7 +238,7 @@ int runMesh(const MeshOptions& o) {
 
   cli::CliProgress progress(cli::CliProgress::detect(o.quiet));
   progress.start("Meshing " + o.input);
-  auto volume = readLabelMap(o.input);
+  auto volume = readNamedLabelMap(o.input, o.labelNames);
   if (!volume) {
     progress.finish(false);
     return fail(volume.status());
@@ -237,19 +262,23 @@ int writeRunOutputs(const PipelineResult& result, const MeshingParameters& param
                     const MeshOptions& o, const std::string& source, cli::CliProgress& progress) {
   ExportOptions eo = exportOptionsFrom(params);
   eo.provenance = "femesher " FEMESHER_VERSION " from " + source;
+  std::vector<std::string> exportWarnings;
   for (const auto& out : o.outputs) {
     if (Status s = writeMesh(result.mesh, out, eo); !s) {
       progress.finish(false);
       return fail(s);
     }
+    if (std::string w = defaultPropertiesWarning(result.mesh, out, eo); !w.empty())
+      exportWarnings.push_back(w);
   }
   if (!o.report.empty()) {
-    if (Status s = writeText(o.report, result.reportJson); !s) {
+    if (Status s = writeText(o.report, addReportWarnings(result.reportJson, exportWarnings)); !s) {
       progress.finish(false);
       return fail(s);
     }
   }
   progress.finish(true);
+  for (const auto& w : exportWarnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
   if (!o.quiet) {
     const auto& r = result;
     std::fprintf(stderr, "%zu vertices, %zu tets, %zu materials in %.1f s\n", r.mesh.points.size(),
@@ -291,8 +320,8 @@ int runOptimize(const std::string& meshPath, const std::string& labelsPath, cons
   return writeRunOutputs(result.value(), params.value(), o, meshPath, progress);
 }
 
-int runInfo(const std::string& input, bool asJson) {
-  auto volume = readLabelMap(input);
+int runInfo(const std::string& input, const std::string& labelNames, bool asJson) {
+  auto volume = readNamedLabelMap(input, labelNames);
   if (!volume) return fail(volume.status());
   const LabelVolume& v = volume.value();
   const LabelMapSummary s = summarizeLabelMap(v);
@@ -306,7 +335,7 @@ int runInfo(const std::string& input, bool asJson) {
     os << "],\n  \"labels\": [";
     for (size_t i = 0; i < s.labels.size(); ++i) {
       const auto& l = s.labels[i];
-      os << (i ? ",\n" : "\n") << "    {\"id\": " << l.id << ", \"name\": \"" << l.name
+      os << (i ? ",\n" : "\n") << "    {\"id\": " << l.id << ", \"name\": \"" << jsonText(l.name)
          << "\", \"voxels\": " << l.voxels << ", \"volume_mm3\": " << l.volumeMm3
          << ", \"components\": " << l.components << "}";
     }
@@ -469,6 +498,9 @@ void addMeshOptions(CLI::App* cmd, MeshOptions& o, bool positionalOutput) {
   cmd->add_option("--seed", o.seed, "Random seed");
   cmd->add_option("--report", o.report, "Write the run report (JSON)");
   cmd->add_option("--save-parameters", o.saveParameters, "Write the effective parameters (JSON)");
+  cmd->add_option("--label-names,--label_names", o.labelNames,
+                  "Colour table naming the labels: 3D Slicer .ctbl/.txt or .csv, or an ITK-SNAP "
+                  "label description file (material.<label>.name overrides it)");
   cmd->add_flag("-q,--quiet", o.quiet, "Only warnings and errors");
   for (const auto& d : parameterDescriptors()) {
     const std::string key = d.key;
@@ -542,10 +574,11 @@ int main(int argc, char** argv) {
                       "--labels to see where they disagree");
   quality->add_flag("--json", qualityJson, "JSON output");
 
-  std::string infoInput;
+  std::string infoInput, infoNames;
   bool infoJson = false;
   auto* info = app.add_subcommand("info", "Describe a label map");
   info->add_option("input", infoInput, "Label map")->required();
+  info->add_option("--label-names,--label_names", infoNames, "Colour table naming the labels (as for mesh)");
   info->add_flag("--json", infoJson, "JSON output");
 
   std::string phantomOut;
@@ -604,7 +637,7 @@ int main(int argc, char** argv) {
     if (*mesh) return runMesh(meshOpts);
     if (*optimizeCmd) return runOptimize(optMesh, optLabels, optOpts);
     if (*quality) return runQuality(qualityMesh, qualityLabels, qualityRaster, qualityJson);
-    if (*info) return runInfo(infoInput, infoJson);
+    if (*info) return runInfo(infoInput, infoNames, infoJson);
     if (*phantom) return runPhantom(phantomOut, phantomVoxel);
     if (*medial) return runMedialAxis(maInput, maOutput, maLabel, maPrune, maGamma, maGammaConstant);
     if (*sizingCmd) return runSizing(szInput, szOutput, szOpts);
@@ -618,6 +651,9 @@ int main(int argc, char** argv) {
                     d.defaultValue.c_str(), d.unit.c_str(), d.help.c_str());
       std::printf("%-24s %-7s %-18s %-8s %s\n", "material.<label>.E", "double", "", "MPa",
                   "Young's modulus of one material in solver exports (also .nu, .density).");
+      std::printf("%-24s %-7s %-18s %-8s %s\n", "material.<label>.name", "string", "", "",
+                  "Name of one material in the mesh, every export and the report (overrides the "
+                  "label map's and --label-names').");
       std::printf("%-24s %-7s %-18s %-8s %s\n", "material.<label>.exclude", "choice", "default no",
                   "", "Leave the material out: 'background' (a cavity or a cut) or 'merge' (its "
                   "voxels join the neighbouring material); 'no' meshes it.");

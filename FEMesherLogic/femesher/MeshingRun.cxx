@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <set>
 
 namespace femesher {
 
@@ -55,6 +56,16 @@ std::vector<std::pair<std::string, double>> pipelineStagePlan(const MeshingParam
 MeshingRun::MeshingRun(const LabelVolume& input, const MeshingParameters& params, RunContext& ctx)
     : input_(input), params_(params), ctx_(ctx) {
   if (Status s = validate(params_); !s) throw Error(s.code(), s.message());
+  if (!params_.materialProperties.empty() || !params_.preprocess.names.empty()) {
+    // Properties or names for a label the map does not have are a mistake: say so before meshing.
+    std::set<int32_t> labels;
+    int32_t last = 0;
+    for (size_t i = 0; i < input_.labels.size(); ++i)
+      if (i == 0 || input_.labels[i] != last) labels.insert(last = input_.labels[i]);
+    if (!input_.hasNoBackground()) labels.erase(0);
+    if (Status s = checkMaterialLabels(params_, {labels.begin(), labels.end()}, input_.sourcePath); !s)
+      throw Error(s.code(), s.message());
+  }
   if (params_.run.threads > 0) ctx_.setThreads(params_.run.threads);
   ctx_.setStagePlan(pipelineStagePlan(params_));
 }

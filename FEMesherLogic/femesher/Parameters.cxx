@@ -3,11 +3,13 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <functional>
+#include <set>
 #include <sstream>
 
 namespace femesher {
@@ -21,6 +23,12 @@ struct Binding {
   std::function<void(MeshingParameters&, double)> set;
   std::function<double(const MeshingParameters&)> get;
 };
+
+std::string trimmed(const std::string& s) {
+  const auto b = s.find_first_not_of(" \t\r\n");
+  if (b == std::string::npos) return {};
+  return s.substr(b, s.find_last_not_of(" \t\r\n") - b + 1);
+}
 
 std::string fmt(double v) {
   std::ostringstream os;
@@ -288,17 +296,31 @@ bool parseNumber(const std::string& text, const std::string& type, double& out) 
 
 Status setMaterialParameter(MeshingParameters& params, const std::string& key,
                             const std::string& value) {
-  // material.<label>.<E|nu|density>
+  // material.<label>.<E|nu|density|exclude|name>
   const auto dot = key.find('.', 9);
   if (dot == std::string::npos)
     return {ErrorCode::InvalidArgument,
             "Parameter '" + key + "': use material.<label>.E, material.<label>.nu, "
-            "material.<label>.density or material.<label>.exclude"};
+            "material.<label>.density, material.<label>.name or material.<label>.exclude"};
   const std::string labelText = key.substr(9, dot - 9), field = key.substr(dot + 1);
   double label = 0, x = 0;
   if (!parseNumber(labelText, "int", label))
     return {ErrorCode::InvalidArgument, "Parameter '" + key + "': '" + labelText +
                                             "' is not an integer label id"};
+  if (field == "name") {
+    const std::string name = trimmed(value);
+    if (name.empty())
+      return {ErrorCode::InvalidArgument,
+              "Parameter '" + key + "': the name is empty; give the material a name, e.g. --set " +
+                  key + "=\"femoral cartilage\""};
+    if (std::any_of(name.begin(), name.end(),
+                    [](char c) { return static_cast<unsigned char>(c) < 0x20 || c == 0x7f; }))
+      return {ErrorCode::InvalidArgument,
+              "Parameter '" + key + "': the name holds a control character (a line break or a "
+              "tab); give it on one line"};
+    params.preprocess.names[int32_t(label)] = name;
+    return Status::ok();
+  }
   if (field == "exclude") {
     if (value == "no" || value == "false") {
       params.preprocess.excluded.erase(int32_t(label));
@@ -314,6 +336,10 @@ Status setMaterialParameter(MeshingParameters& params, const std::string& key,
     }
     return Status::ok();
   }
+  if (field != "E" && field != "nu" && field != "density")
+    return {ErrorCode::InvalidArgument,
+            "Parameter '" + key + "': unknown material field '" + field +
+                "' (E, nu, density, name, exclude)"};
   if (!parseNumber(value, "double", x))
     return {ErrorCode::InvalidArgument, "Parameter '" + key + "': '" + value + "' is not a number"};
   auto it = params.materialProperties.find(int32_t(label));
@@ -326,13 +352,9 @@ Status setMaterialParameter(MeshingParameters& params, const std::string& key,
     if (x <= -1 || x >= 0.5)
       return {ErrorCode::InvalidArgument, "Parameter '" + key + "' must be in (-1, 0.5)"};
     props.poissonRatio = x;
-  } else if (field == "density") {
+  } else {  // density
     if (x < 0) return {ErrorCode::InvalidArgument, "Parameter '" + key + "' must be >= 0"};
     props.density = x;
-  } else {
-    return {ErrorCode::InvalidArgument,
-            "Parameter '" + key + "': unknown material field '" + field +
-                "' (E, nu, density, exclude)"};
   }
   params.materialProperties[int32_t(label)] = props;
   return Status::ok();
@@ -396,7 +418,7 @@ Status setParameter(MeshingParameters& params, const std::string& key, const std
     for (const auto& x : bindings()) known += (known.empty() ? "" : ", ") + x.desc.key;
     return {ErrorCode::InvalidArgument,
             "Unknown parameter '" + key + "'. Known parameters: " + known +
-                ", material.<label>.E|nu|density|exclude."};
+                ", material.<label>.E|nu|density|name|exclude."};
   }
   double x = 0;
   if (!parseNumber(value, b->desc.type, x))
@@ -458,6 +480,7 @@ std::string parametersToJson(const MeshingParameters& params) {
                                    {"density", m.density}};
   for (const auto& [label, how] : params.preprocess.excluded)
     mats[std::to_string(label)]["exclude"] = exclusionName(how);
+  for (const auto& [label, name] : params.preprocess.names) mats[std::to_string(label)]["name"] = name;
   j["materials"] = mats;
   return j.dump(2);
 }
@@ -506,11 +529,15 @@ Result<MeshingParameters> parametersFromJson(const std::string& text,
     if (it.key() == "materials") {
       if (!it->is_object())
         return Result<MeshingParameters>(ErrorCode::InvalidArgument,
-                                         "\"materials\" must be an object label -> {E, nu}");
+                                         "\"materials\" must be an object label -> {E, nu, density, name, exclude}");
       for (auto m = it->begin(); m != it->end(); ++m) {
         for (auto f = m->begin(); f != m->end(); ++f) {
-          if (f.key() == "exclude" && f->is_string()) {
-            Status s = setParameter(p, "material." + m.key() + ".exclude", f->get<std::string>());
+          if (f.key() == "exclude" || f.key() == "name") {
+            if (!f->is_string())
+              return Result<MeshingParameters>(ErrorCode::InvalidArgument,
+                                               "materials." + m.key() + "." + f.key() +
+                                                   " must be a string");
+            Status s = setParameter(p, "material." + m.key() + "." + f.key(), f->get<std::string>());
             if (!s) return s;
             continue;
           }
@@ -550,6 +577,38 @@ Result<MeshingParameters> loadParametersFile(const std::string& path,
   auto r = parametersFromJson(ss.str(), base);
   if (!r) return Status(r.status().code(), path + ": " + r.status().message());
   return r;
+}
+
+Status checkMaterialLabels(const MeshingParameters& params, const std::vector<int32_t>& labels,
+                           const std::string& source) {
+  std::set<int32_t> given;
+  for (const auto& kv : params.materialProperties) given.insert(kv.first);
+  for (const auto& kv : params.preprocess.names) given.insert(kv.first);
+  const std::set<int32_t> present(labels.begin(), labels.end());
+  std::vector<int32_t> unknown;
+  for (int32_t l : given)
+    if (!present.count(l)) unknown.push_back(l);
+  if (unknown.empty()) return Status::ok();
+  auto list = [](const auto& v) {
+    std::string t;
+    for (int32_t l : v) t += (t.empty() ? "" : ", ") + std::to_string(l);
+    return t;
+  };
+  const std::string what = source.empty() ? std::string("The label map") : "'" + source + "'";
+  std::string keys;
+  for (int32_t l : unknown) {
+    std::vector<std::string> fields;
+    if (params.materialProperties.count(l)) fields = {"E", "nu", "density"};
+    if (params.preprocess.names.count(l)) fields.push_back("name");
+    std::string f;
+    for (const auto& x : fields) f += (f.empty() ? "" : "|") + x;
+    keys += (keys.empty() ? "" : ", ") + ("material." + std::to_string(l) + "." + f);
+  }
+  return {ErrorCode::InvalidArgument,
+          what + " has no label " + list(unknown) + ", but the parameters set " + keys +
+              ". Its materials are labels " + (present.empty() ? std::string("(none)") : list(present)) +
+              ". Use one of those labels (see `femesher info`), or remove the setting from --set, "
+              "the parameter file or the panel's material table."};
 }
 
 Status validate(const MeshingParameters& p) {

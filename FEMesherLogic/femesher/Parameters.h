@@ -88,8 +88,10 @@ std::string parameterDescriptorsToJson();
 bool parseBoolean(const std::string& text, bool& value);
 
 /// Set one parameter from text ("target_edge_length", "1.5"). Also accepts
-/// "material.<label>.E", "material.<label>.nu", "material.<label>.density", "default.E", ...
-/// and "material.<label>.exclude" = "background" | "merge" | "no" (see Exclusion).
+/// "material.<label>.E", "material.<label>.nu", "material.<label>.density", "default.E", ...,
+/// "material.<label>.name" = any one-line text (the material's name in the mesh, every export and
+/// the report; into `preprocess.names`) and "material.<label>.exclude" = "background" | "merge" |
+/// "no" (see Exclusion).
 /// Errors: InvalidArgument naming the key and the accepted range.
 Status setParameter(MeshingParameters& params, const std::string& key, const std::string& value);
 /// Current value as text.
@@ -99,7 +101,8 @@ std::string getParameter(const MeshingParameters& params, const std::string& key
 Result<MeshingParameters> presetParameters(const std::string& name);
 std::vector<std::string> presetNames();
 
-/// JSON round trip (object of key -> value; materials under "materials").
+/// JSON round trip (object of key -> value; materials under "materials": label -> {E, nu,
+/// density, name, exclude}).
 std::string parametersToJson(const MeshingParameters& params);
 Result<MeshingParameters> parametersFromJson(const std::string& json,
                                              const MeshingParameters& base = {});
@@ -113,5 +116,13 @@ std::string exclusionName(Exclusion exclusion);      ///< "background", "merge"
 
 /// Check ranges and consistency.
 Status validate(const MeshingParameters& params);
+
+/// Checks that every label the parameters give properties or a name (material.<label>.E, .nu,
+/// .density, .name) is one of `labels`, the materials of the label map `source` (its labels other
+/// than the background 0). InvalidArgument otherwise, naming the unknown labels and their keys,
+/// listing the labels present and what to do. (Exclusions of absent labels are only warned
+/// about, by LabelPreprocess.) `MeshingRun` calls this before any stage runs.
+Status checkMaterialLabels(const MeshingParameters& params, const std::vector<int32_t>& labels,
+                           const std::string& source);
 
 }  // namespace femesher

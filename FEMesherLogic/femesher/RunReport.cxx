@@ -96,4 +96,11 @@ std::string runReportJson(const MeshingRun& run, const std::vector<std::string>&
   return report.dump(2);
 }
 
+std::string addReportWarnings(const std::string& reportJson, const std::vector<std::string>& warnings) {
+  if (warnings.empty()) return reportJson;
+  json report = json::parse(reportJson);
+  for (const auto& w : warnings) report["warnings"].push_back(w);
+  return report.dump(2);
+}
+
 }  // namespace femesher

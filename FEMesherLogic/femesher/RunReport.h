@@ -19,4 +19,8 @@ namespace femesher {
 std::string runReportJson(const MeshingRun& run, const std::vector<std::string>& warnings,
                           double totalSeconds);
 
+/// The report `reportJson` with `warnings` appended to its "warnings" (e.g. the exports' warnings,
+/// known only once the outputs are written: `defaultPropertiesWarning`).
+std::string addReportWarnings(const std::string& reportJson, const std::vector<std::string>& warnings);
+
 }  // namespace femesher

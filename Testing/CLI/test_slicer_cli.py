@@ -141,6 +141,13 @@ for e in params:
 check(set(seen) == set(registry), "every registry parameter is in the XML (missing: %s)" % sorted(set(registry) - set(seen)))
 check(root.find(".//*[name='preset']") is None,
       "no preset selector (Slicer passes every parameter, which would override it)")
+optional_files = [e for group in root.findall("parameters") for e in group if e.tag == "file"]
+check([text(e, "name") for e in optional_files] == ["labelNames"], "one optional input file: the label names table")
+for e in optional_files:
+    flag = text(e, "longflag") or ""
+    check(VALID_NAME.match(flag.lstrip("-")) and text(e, "index") is None and text(e, "channel") == "input",
+          "%s: an optional input file with <longflag> %s (letters, digits, '_'), no <index>"
+          % (text(e, "name"), flag))
 indexed = sorted((int(text(e, "index")), e) for e in params if e.tag in FILE_TAGS)
 check([(i, e.tag, text(e, "channel")) for i, e in indexed] == [(0, "image", "input"), (1, "geometry", "output")],
       "index 0 = input label map, 1 = output model")
@@ -196,6 +203,18 @@ if os.path.exists(slicer_vtu) and os.path.exists(plain_vtu):
     Pp, Tp, Lp = read_mesh(plain_vtu)
     check(len(Ts) > 1000 and np.array_equal(Ps, Pp) and np.array_equal(Ts, Tp) and np.array_equal(Ls, Lp),
           "same mesh as `femesher mesh` (%d points, %d tets; points, tets and labels equal)" % (len(Ps), len(Ts)))
+
+# --- (a') a label names table picked in the file widget: Slicer passes --label_names FILE --------
+table = os.path.join(TMP, "names.ctbl")
+with open(table, "w") as f:
+    f.write("# Slicer colour table\n1 Phantom_one 255 0 0 255\n2 Phantom_two 0 255 0 255\n")
+named_report = os.path.join(TMP, "named.json")
+args, _ = slicer_command([phantom, os.path.join(TMP, "named.vtu")])
+r = run("--report", named_report, "--label_names", table, *args)
+named = open(named_report).read() if os.path.exists(named_report) else ""
+check(r.returncode == 0 and "Phantom_one" in named and "Phantom_two" in named,
+      "--label_names FILE (as Slicer passes the file widget) names the materials (rc=%d %s)"
+      % (r.returncode, r.stderr.strip()[-300:]))
 
 # --- (b) every checkbox ticked: each boolean flips ----------------------------------------------
 report = os.path.join(TMP, "flipped.json")

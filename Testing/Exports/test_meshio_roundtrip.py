@@ -183,17 +183,18 @@ for name, source in (("phantom", None), ("spheres", os.path.join(DATA, "spheres_
     check(set(int(i) for i in inp.point_sets.get("BOUNDARY", [])) == boundary_nodes,
           "%s: INP NSET BOUNDARY = nodes of the MSH boundary triangles (%d)" % (name, len(boundary_nodes)))
 
-    # --- .feb (FEBio XML) ----------------------------------------------------------------------
+    # --- .feb (FEBio XML, format 4.0; its full check is test_febio_export.py) ------------------
     feb = ET.parse(base + ".feb").getroot()
-    check(feb.tag == "febio_spec" and feb.get("version") == "2.5", "%s: FEBio 2.5 document" % name)
-    elems = feb.findall("./Geometry/Elements/elem")
-    check([int(e.get("id")) for e in elems] == list(range(1, n_tets + 1)), "%s: FEBio elements 1..%d" % (name, n_tets))
-    check(len(feb.findall("./Geometry/Nodes/node")) == n_pts, "%s: FEBio nodes" % name)
+    check(feb.tag == "febio_spec" and feb.get("version") == "4.0", "%s: FEBio 4.0 document" % name)
+    elems = feb.findall("./Mesh/Elements/elem")
+    check([int(e.get("id")) for e in elems] == list(range(1, n_tets + 1)), "%s: FEBio element ids 1..%d over all domains" % (name, n_tets))
+    check(len(feb.findall("./Mesh/Nodes/node")) == n_pts, "%s: FEBio nodes" % name)
     fm = feb.findall("./Material/material")
-    check(sorted(m.get("name") for m in fm) == sorted(nm for _, nm in mats), "%s: FEBio material per label" % name)
-    doms = feb.findall("./Geometry/Elements")
+    check(len(fm) == len(mats) and len(set(m.get("name") for m in fm)) == len(mats), "%s: FEBio material per label, names unique" % name)
+    doms = feb.findall("./Mesh/Elements")
     per_label = sorted(int((L == i).sum()) for i in ids)
     check(sorted(len(d.findall("elem")) for d in doms) == per_label, "%s: FEBio domain sizes = tets per label" % name)
+    check(len(feb.findall("./Mesh/Surface")) == len(surf), "%s: FEBio has a surface per MSH surface (%d)" % (name, len(surf)))
 
     # --- .stl ------------------------------------------------------------------------------------
     text = open(base + ".stl").read()

@@ -255,6 +255,31 @@ TEST(LabelPreprocess, ExcludedMaterialMergesIntoItsNeighbours) {
   EXPECT_TRUE(named) << "the warning must name where the voxels went";
 }
 
+// The user's names replace the map's names (and "label N") in the material table and in the
+// warnings; labels without a user name keep theirs.
+TEST(LabelPreprocess, UserNamesNameTheMaterials) {
+  const LabelVolume v = slabsInABox();  // 42 is "tendon" in the map, 7 and 1000 have no name
+  RunContext ctx;
+  LabelPreprocessParameters p;
+  p.names[7] = "meniscus";
+  p.names[42] = "patellar tendon";
+  p.excluded[1000] = Exclusion::MergeIntoNeighbour;
+  const PreprocessedVolume pv = preprocessLabels(v, p, ctx);
+  ASSERT_EQ(pv.userLabel, (std::vector<int32_t>{0, 7, 42}));
+  EXPECT_EQ(pv.materials[1].name, "meniscus");
+  EXPECT_EQ(pv.materials[2].name, "patellar tendon");
+  EXPECT_EQ(pv.materials[2].color, (std::array<double, 3>{0.1, 0.2, 0.3}));  // the map's colour stays
+  bool named = false;
+  for (const auto& w : ctx.warnings()) named |= w.find("meniscus (label 7)") != std::string::npos;
+  EXPECT_TRUE(named) << "the merge warning names where the voxels went by the user's name";
+  p.names.clear();
+  p.excluded.clear();
+  RunContext ctx2;
+  const PreprocessedVolume plain = preprocessLabels(v, p, ctx2);
+  EXPECT_EQ(plain.materials[1].name, "label 7");
+  EXPECT_EQ(plain.materials[2].name, "tendon");
+}
+
 // An excluded material as background: a cut between the two other slabs; the crop ignores it.
 TEST(LabelPreprocess, ExcludedMaterialAsBackgroundLeavesACut) {
   LabelVolume v = slabsInABox();

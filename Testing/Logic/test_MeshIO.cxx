@@ -440,23 +440,33 @@ TEST(MeshIO, MeditFebioAndStlStructure) {
   const std::string med = slurp(dir + "/s.mesh");
   EXPECT_NE(med.find("Triangles\n" + std::to_string(tris.size()) + "\n"), std::string::npos);
   EXPECT_NE(med.find("Tetrahedra\n" + std::to_string(m.tets.size()) + "\n"), std::string::npos);
-  // FEBio: sequential element ids, two domains, two materials, escaped names.
+  // FEBio 4.0: element ids 1..N over both domains, two domains, two named materials, surfaces.
   const std::string feb = slurp(dir + "/s.feb");
-  EXPECT_NE(feb.find("<febio_spec version=\"2.5\">"), std::string::npos);
-  EXPECT_NE(feb.find("&quot;grade 5&quot; &lt;special&gt; &amp;"), std::string::npos);
-  size_t elems = 0, domains = 0, mats = 0;
+  EXPECT_NE(feb.find("<febio_spec version=\"4.0\">"), std::string::npos);
+  size_t elems = 0, domains = 0, mats = 0, surfaces = 0, faces = 0;
   for (const auto& l : lines(feb)) {
     if (l.find("<elem id=\"") != std::string::npos) {
       ++elems;
       EXPECT_NE(l.find("<elem id=\"" + std::to_string(elems) + "\">"), std::string::npos) << l;
     }
-    domains += l.find("<Elements type=\"tet4\"") != std::string::npos;
+    domains += l.find("<Elements type=\"tet4\" name=\"") != std::string::npos;
     mats += l.find("type=\"neo-Hookean\"") != std::string::npos;
+    surfaces += l.find("<Surface name=\"") != std::string::npos;
+    faces += l.find("<tri3 id=\"") != std::string::npos;
   }
   EXPECT_EQ(elems, m.tets.size());
   EXPECT_EQ(domains, 2u);
   EXPECT_EQ(mats, 2u);
-  EXPECT_NE(feb.find("</febio_spec>"), std::string::npos);
+  EXPECT_EQ(surfaces, 3u);  // boundary of each, their interface
+  EXPECT_EQ(faces, tris.size());
+  for (const char* s : {"<material id=\"1\" name=\"trabecular_bone\"",
+                        "<material id=\"2\" name=\"Implant_Ti_6Al_4V_grade_5_special_long_name_that\"",
+                        "<Surface name=\"trabecular_bone__Implant_Ti_6Al_4V_grade_5_special_long_name_that\">",
+                        "<Surface name=\"trabecular_bone__boundary\">",
+                        "<NodeSet name=\"nodes__trabecular_bone\">",
+                        "<SolidDomain name=\"trabecular_bone\" mat=\"trabecular_bone\"/>",
+                        "<Module type=\"solid\"/>", "<Control>", "<MeshDomains>", "</febio_spec>"})
+    EXPECT_NE(feb.find(s), std::string::npos) << s;
   // STL: one solid per patch, facet normals unit length and consistent with the vertex order.
   size_t facets = 0, solids = 0;
   const auto sl = lines(slurp(dir + "/s.stl"));
@@ -477,6 +487,56 @@ TEST(MeshIO, MeditFebioAndStlStructure) {
   }
   EXPECT_EQ(facets, tris.size());
   EXPECT_EQ(solids, 3u);
+}
+
+// Names FEBio and Gmsh can use: identifiers for FEBio (letters, digits, underscore, a letter
+// first, no "__", not a reserved word), unique in both formats even when materials share a name.
+TEST(MeshIO, MaterialNamesAreSafeAndUniquePerFormat) {
+  TetMesh m = cubeGridMesh(3, 1.0, {0, 0, 0}, [](const Vec3& g) { return 1 + int(g[0]) ; });
+  ASSERT_EQ(m.materials.size(), 3u);
+  m.materials[0].name = "bone";
+  m.materials[1].name = "bone";
+  m.materials[2].name = "3rd -- layer \xc3\xbc__x";
+  const std::string dir = tmpDir();
+  ASSERT_TRUE(writeMesh(m, dir + "/n.feb").isOk());
+  ASSERT_TRUE(writeMesh(m, dir + "/n.msh").isOk());
+  const std::string feb = slurp(dir + "/n.feb");
+  for (const char* s : {"<material id=\"1\" name=\"bone\"", "<material id=\"2\" name=\"bone_2\"",
+                        "<material id=\"3\" name=\"m_3rd_layer_x\"", "<Surface name=\"bone__bone_2\">"})
+    EXPECT_NE(feb.find(s), std::string::npos) << s;
+  for (const auto& l : lines(feb)) {  // ASCII only, and "--" only where the comment ends
+    EXPECT_TRUE(std::all_of(l.begin(), l.end(), [](char c) { return static_cast<unsigned char>(c) < 0x80; })) << l;
+    if (l != "-->" && l.rfind("<!--", 0) != 0) EXPECT_EQ(l.find("--"), std::string::npos) << l;
+  }
+  const std::string msh = slurp(dir + "/n.msh");
+  EXPECT_NE(msh.find("3 1 \"bone (label 1)\""), std::string::npos);
+  EXPECT_NE(msh.find("3 2 \"bone (label 2)\""), std::string::npos);
+  m.materials[2].name = "boundary";
+  ASSERT_TRUE(writeMesh(m, dir + "/r.feb").isOk());
+  EXPECT_NE(slurp(dir + "/r.feb").find("<material id=\"3\" name=\"boundary_3\""), std::string::npos);
+}
+
+TEST(MeshIO, DefaultPropertiesWarningNamesTheMaterialsWithout) {
+  const TetMesh m = twoMaterialCube();  // labels 2 and 5
+  MeshingParameters params;
+  ExportOptions o = exportOptionsFrom(params);
+  const std::string w = defaultPropertiesWarning(m, "out/knee.inp", o);
+  for (const char* s : {"'out/knee.inp'", "2 materials", "label 2 (trabecular bone)", "label 5 (Implant",
+                        "E = 1000 MPa", "material.<label>.E"})
+    EXPECT_NE(w.find(s), std::string::npos) << s << " in: " << w;
+  EXPECT_NE(defaultPropertiesWarning(m, "k.feb", o), "");
+  EXPECT_EQ(defaultPropertiesWarning(m, "k.vtu", o), "");  // not a solver deck
+  EXPECT_EQ(defaultPropertiesWarning(m, "k.msh", o), "");
+  ASSERT_TRUE(setParameter(params, "material.2.E", "300").isOk());
+  o = exportOptionsFrom(params);
+  const std::string one = defaultPropertiesWarning(m, "k.inp", o);
+  EXPECT_NE(one.find("1 material has"), std::string::npos) << one;
+  EXPECT_EQ(one.find("label 2"), std::string::npos) << one;
+  ASSERT_TRUE(setParameter(params, "material.5.nu", "0.34").isOk());
+  EXPECT_EQ(defaultPropertiesWarning(m, "k.inp", exportOptionsFrom(params)), "");
+  MeshingParameters chosen;
+  ASSERT_TRUE(setParameter(chosen, "default.E", "500").isOk());
+  EXPECT_EQ(defaultPropertiesWarning(m, "k.inp", exportOptionsFrom(chosen)), "");
 }
 
 TEST(MeshIO, UnknownExtensionFailsAndLeavesNoFile) {

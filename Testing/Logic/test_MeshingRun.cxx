@@ -102,6 +102,25 @@ TEST(MeshingRun, InvalidParametersAreRefusedBeforeAnyStage) {
   EXPECT_EQ(r.status().code(), ErrorCode::InvalidArgument);
 }
 
+TEST(MeshingRun, PropertiesForAbsentLabelsAreRefusedBeforeAnyStage) {
+  LabelVolume v = makePhantom();
+  v.sourcePath = "phantom.nrrd";
+  RunContext ctx;
+  MeshingParameters p;
+  ASSERT_TRUE(setParameter(p, "material.5.E", "110000").isOk());
+  ASSERT_TRUE(setParameter(p, "material.12.E", "5").isOk());
+  auto r = runPipeline(v, p, ctx);
+  ASSERT_EQ(r.status().code(), ErrorCode::InvalidArgument);
+  EXPECT_NE(r.status().message().find("'phantom.nrrd' has no label 12"), std::string::npos)
+      << r.status().message();
+  EXPECT_NE(r.status().message().find("labels 1, 2, 3, 4, 5"), std::string::npos);
+  EXPECT_TRUE(ctx.warnings().empty());  // refused before the first stage
+  // Background 0 is not a material either.
+  MeshingParameters q;
+  ASSERT_TRUE(setParameter(q, "material.0.name", "air").isOk());
+  EXPECT_THROW(MeshingRun(v, q, ctx), Error);
+}
+
 TEST(MeshingRun, CliSizingWritesTheFieldTheMeshRunUses) {
   const std::string dir = std::string(FEMESHER_TEST_TMP_DIR) + "/meshing_run";
   std::filesystem::create_directories(dir);

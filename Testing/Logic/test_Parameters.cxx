@@ -139,6 +139,42 @@ TEST(Parameters, MaterialExclusionIsAParameterThatRoundTrips) {
   EXPECT_EQ(p.preprocess.excluded.count(4), 0u);
 }
 
+TEST(Parameters, MaterialNameIsAParameterThatRoundTrips) {
+  MeshingParameters p;
+  ASSERT_TRUE(setParameter(p, "material.3.name", "  femoral cartilage ").isOk());
+  ASSERT_TRUE(setParameter(p, "material.9.name", "lesion \"A\", <1 mm>").isOk());
+  EXPECT_EQ(p.preprocess.names.at(3), "femoral cartilage");  // trimmed
+  EXPECT_TRUE(p.materialProperties.empty());                 // a name is not a property
+  Status empty = setParameter(p, "material.3.name", "   ");
+  EXPECT_EQ(empty.code(), ErrorCode::InvalidArgument);
+  EXPECT_NE(empty.message().find("empty"), std::string::npos);
+  EXPECT_EQ(setParameter(p, "material.3.name", "two\nlines").code(), ErrorCode::InvalidArgument);
+  EXPECT_EQ(p.preprocess.names.at(3), "femoral cartilage");
+  Status field = setParameter(p, "material.3.colour", "red");
+  EXPECT_NE(field.message().find("name"), std::string::npos);  // lists the fields, name among them
+  auto q = parametersFromJson(parametersToJson(p));
+  ASSERT_TRUE(q.isOk()) << q.status().message();
+  EXPECT_EQ(q->preprocess.names, p.preprocess.names);
+  EXPECT_EQ(parametersToJson(q.value()), parametersToJson(p));
+  EXPECT_FALSE(parametersFromJson("{\"materials\": {\"3\": {\"name\": 7}}}").isOk());
+}
+
+TEST(Parameters, PropertiesAndNamesOfAbsentLabelsAreRejected) {
+  MeshingParameters p;
+  EXPECT_TRUE(checkMaterialLabels(p, {1, 2}, "knee.nii.gz").isOk());
+  ASSERT_TRUE(setParameter(p, "material.2.E", "17000").isOk());
+  ASSERT_TRUE(setParameter(p, "material.2.name", "bone").isOk());
+  ASSERT_TRUE(setParameter(p, "material.4.exclude", "background").isOk());  // only warned about
+  EXPECT_TRUE(checkMaterialLabels(p, {1, 2}, "knee.nii.gz").isOk());
+  ASSERT_TRUE(setParameter(p, "material.12.E", "5").isOk());
+  ASSERT_TRUE(setParameter(p, "material.13.name", "screw").isOk());
+  const Status s = checkMaterialLabels(p, {1, 2, 3}, "knee.nii.gz");
+  ASSERT_EQ(s.code(), ErrorCode::InvalidArgument);
+  for (const char* part : {"'knee.nii.gz'", "no label 12, 13", "material.12.E", "material.13.name",
+                           "labels 1, 2, 3", "femesher info"})
+    EXPECT_NE(s.message().find(part), std::string::npos) << part << " in: " << s.message();
+}
+
 TEST(Parameters, PresetsDifferInSize) {
   auto c = presetParameters("coarse"), f = presetParameters("fine");
   ASSERT_TRUE(c.isOk() && f.isOk());

@@ -1,71 +1,132 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// FEBio 2.5 model (.feb): nodes, a tet4 domain and a neo-Hookean material per label, surfaces.
+// FEBio input file, format 4.0 (.feb): Module, Control, Material, Mesh (Nodes, one Elements
+// domain per material, NodeSets, Surfaces) and MeshDomains. The structure follows FEBio's user
+// manual for format 4.0 (sections "Free Format Overview", "Control Section", "Material Section",
+// "Mesh Section", "MeshDomains Section") and what FEBio's 4.0 reader requires (material ids
+// 1..N in order with unique names, node and element ids increasing, Elements named, a
+// SolidDomain per Elements naming a material by name).
 #include <femesher/Version.h>
 #include <femesher/io/MeshFormats.h>
+
+#include <set>
 
 namespace femesher::meshio {
 
 namespace {
 
-std::string xmlEscape(const std::string& s) {
+/// Text that may stand inside an XML comment: printable ASCII, no "--".
+std::string commentText(const std::string& s) {
   std::string o;
   for (char c : oneLine(s)) {
-    if (c == '<') o += "&lt;";
-    else if (c == '>') o += "&gt;";
-    else if (c == '&') o += "&amp;";
-    else if (c == '"') o += "&quot;";
-    else o += c;
+    const unsigned char u = static_cast<unsigned char>(c);
+    const char x = u >= 0x80 ? '?' : c;
+    if (x == '-' && !o.empty() && o.back() == '-') continue;
+    o += x;
   }
   return o;
+}
+
+/// Writes `ids` (1-based) comma separated, 16 per line, as the value of a NodeSet.
+void writeIdList(std::FILE* f, const std::set<int32_t>& nodes) {
+  size_t i = 0;
+  for (int32_t v : nodes) {
+    const bool last = ++i == nodes.size();
+    std::fprintf(f, "%s%d%s", i % 16 == 1 ? "\t\t\t" : "", v + 1,
+                 last ? "\n" : (i % 16 == 0 ? ",\n" : ","));
+  }
 }
 
 }  // namespace
 
 Status writeFeb(const TetMesh& m, const std::string& path, const ExportOptions& o) {
   const SolverDeckTables tables(m);
-  const auto& [byLabel, tris, patches, elset] = tables;
+  const auto& byLabel = tables.byLabel;
+  const auto& tris = tables.tris;
+  const auto& patches = tables.patches;
+  const auto names = febioNames(m);
+  auto surfaceName = [&](const PatchKey& k) {
+    return names.at(k.first) + "__" +
+           (k.second == kExteriorLabel ? "boundary" : names.at(k.second));
+  };
   return writeText(path, [&](std::FILE* f) {
-    // ISO-8859-1: any byte sequence in a material name keeps the file well-formed.
     std::fprintf(f, "<?xml version=\"1.0\" encoding=\"ISO-8859-1\"?>\n");
-    std::fprintf(f, "<!-- FEMesher %s: LPS mm, mm-N-s-MPa units; neo-Hookean materials from E and nu.\n"
-                    "     Elements are numbered 1..N per domain in file order; add Boundary, Loads,\n"
-                    "     Control and Step sections for an analysis. -->\n", FEMESHER_VERSION);
-    std::fprintf(f, "<febio_spec version=\"2.5\">\n\t<Module type=\"solid\"/>\n");
-    std::fprintf(f, "\t<Globals>\n\t\t<Constants>\n\t\t\t<T>0</T>\n\t\t\t<R>0</R>\n\t\t\t<Fc>0</Fc>\n"
-                    "\t\t</Constants>\n\t</Globals>\n\t<Material>\n");
-    std::map<int32_t, int> mid;
+    std::fprintf(
+        f,
+        "<!-- FEMesher %s%s\n"
+        "     Units: LPS mm, N, MPa, tonne/mm^3 (s). Materials: neo-Hookean from E and nu.\n"
+        "     Element ids are unique, 1..N over all domains. Surfaces <a>__<b>: the interface of\n"
+        "     materials a and b, faces oriented outward from a; <a>__boundary: a's outer "
+        "boundary,\n"
+        "     faces oriented outward. NodeSets nodes__<a>, nodes__<a>__<b>, nodes__<a>__boundary:\n"
+        "     the nodes of a material, an interface, an outer boundary. Add Boundary and Loads\n"
+        "     sections (and edit Control) for an analysis.\n",
+        FEMESHER_VERSION, o.provenance.empty() ? "" : (": " + commentText(o.provenance)).c_str());
+    for (const auto& [l, n] : names)
+      std::fprintf(f, "     label %d '%s' -> material and domain %s\n", l,
+                   commentText(materialName(m, l)).c_str(), n.c_str());
+    std::fprintf(f, "-->\n<febio_spec version=\"4.0\">\n\t<Module type=\"solid\"/>\n");
+    // A static step; the solver parameters are the manual's Control Section example.
+    std::fprintf(f,
+                 "\t<Control>\n\t\t<analysis>STATIC</analysis>\n\t\t<time_steps>10</time_steps>\n"
+                 "\t\t<step_size>0.1</step_size>\n\t\t<solver type=\"solid\">\n"
+                 "\t\t\t<max_refs>25</max_refs>\n\t\t\t<diverge_reform>1</diverge_reform>\n"
+                 "\t\t\t<reform_each_time_step>1</reform_each_time_step>\n"
+                 "\t\t\t<dtol>0.001</dtol>\n\t\t\t<etol>0.01</etol>\n\t\t\t<rtol>0</rtol>\n"
+                 "\t\t\t<lstol>0.9</lstol>\n\t\t\t<min_residual>1e-20</min_residual>\n"
+                 "\t\t\t<qn_method type=\"BFGS\">\n\t\t\t\t<max_ups>10</max_ups>\n"
+                 "\t\t\t</qn_method>\n\t\t</solver>\n\t</Control>\n");
+    std::fprintf(f, "\t<Material>\n");
+    int matId = 0;
     for (const auto& [l, tets] : byLabel) {
       const ElasticProperties& p = propsFor(o, l);
-      const int id = int(mid.size()) + 1;
-      mid[l] = id;
-      std::fprintf(f, "\t\t<material id=\"%d\" name=\"%s\" type=\"neo-Hookean\">\n", id,
-                   xmlEscape(materialName(m, l)).c_str());
-      std::fprintf(f, "\t\t\t<density>%.15g</density>\n\t\t\t<E>%.15g</E>\n\t\t\t<v>%.15g</v>\n",
+      std::fprintf(f, "\t\t<material id=\"%d\" name=\"%s\" type=\"neo-Hookean\">\n", ++matId,
+                   names.at(l).c_str());
+      std::fprintf(f, "\t\t\t<density>%.17g</density>\n\t\t\t<E>%.17g</E>\n\t\t\t<v>%.17g</v>\n",
                    p.density, p.youngsModulus, p.poissonRatio);
       std::fprintf(f, "\t\t</material>\n");
     }
-    std::fprintf(f, "\t</Material>\n\t<Geometry>\n\t\t<Nodes name=\"AllNodes\">\n");
+    std::fprintf(f, "\t</Material>\n\t<Mesh>\n\t\t<Nodes name=\"all_nodes\">\n");
     for (size_t i = 0; i < m.points.size(); ++i)
       std::fprintf(f, "\t\t\t<node id=\"%zu\">%.17g,%.17g,%.17g</node>\n", i + 1, m.points[i][0],
                    m.points[i][1], m.points[i][2]);
     std::fprintf(f, "\t\t</Nodes>\n");
-    size_t eid = 1;
+    // Element ids run on over the domains (FEBio looks elements up by id).
+    size_t eid = 0;
     for (const auto& [l, tets] : byLabel) {
-      std::fprintf(f, "\t\t<Elements type=\"tet4\" mat=\"%d\" name=\"%s\">\n", mid.at(l), elset.at(l).c_str());
+      std::fprintf(f, "\t\t<Elements type=\"tet4\" name=\"%s\">\n", names.at(l).c_str());
       for (size_t t : tets)
-        std::fprintf(f, "\t\t\t<elem id=\"%zu\">%d,%d,%d,%d</elem>\n", eid++, m.tets[t][0] + 1,
+        std::fprintf(f, "\t\t\t<elem id=\"%zu\">%d,%d,%d,%d</elem>\n", ++eid, m.tets[t][0] + 1,
                      m.tets[t][1] + 1, m.tets[t][2] + 1, m.tets[t][3] + 1);
       std::fprintf(f, "\t\t</Elements>\n");
     }
+    for (const auto& [l, tets] : byLabel) {
+      std::set<int32_t> nodes;
+      for (size_t t : tets) nodes.insert(m.tets[t].begin(), m.tets[t].end());
+      std::fprintf(f, "\t\t<NodeSet name=\"nodes__%s\">\n", names.at(l).c_str());
+      writeIdList(f, nodes);
+      std::fprintf(f, "\t\t</NodeSet>\n");
+    }
     for (const auto& [key, list] : patches) {
-      std::fprintf(f, "\t\t<Surface name=\"%s\">\n", patchName(key).c_str());
-      size_t fid = 1;
+      std::set<int32_t> nodes;
+      for (size_t i : list) nodes.insert(tris[i].v.begin(), tris[i].v.end());
+      std::fprintf(f, "\t\t<NodeSet name=\"nodes__%s\">\n", surfaceName(key).c_str());
+      writeIdList(f, nodes);
+      std::fprintf(f, "\t\t</NodeSet>\n");
+    }
+    // Faces in the order extractInterfaces gives: outward from labelA's tet.
+    for (const auto& [key, list] : patches) {
+      std::fprintf(f, "\t\t<Surface name=\"%s\">\n", surfaceName(key).c_str());
+      size_t fid = 0;
       for (size_t i : list)
-        std::fprintf(f, "\t\t\t<tri3 id=\"%zu\">%d,%d,%d</tri3>\n", fid++, tris[i].v[0] + 1,
+        std::fprintf(f, "\t\t\t<tri3 id=\"%zu\">%d,%d,%d</tri3>\n", ++fid, tris[i].v[0] + 1,
                      tris[i].v[1] + 1, tris[i].v[2] + 1);
       std::fprintf(f, "\t\t</Surface>\n");
     }
-    std::fprintf(f, "\t</Geometry>\n</febio_spec>\n");
+    std::fprintf(f, "\t</Mesh>\n\t<MeshDomains>\n");
+    for (const auto& [l, tets] : byLabel)
+      std::fprintf(f, "\t\t<SolidDomain name=\"%s\" mat=\"%s\"/>\n", names.at(l).c_str(),
+                   names.at(l).c_str());
+    std::fprintf(f, "\t</MeshDomains>\n</febio_spec>\n");
   });
 }
 

@@ -68,8 +68,9 @@ Status writeMsh(const TetMesh& m, const std::string& path, const ExportOptions&)
   return writeText(path, [&](std::FILE* f) {
     std::fprintf(f, "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n");
     std::fprintf(f, "$PhysicalNames\n%zu\n", labels.size() + patches.size());
+    const auto names = uniqueMaterialNames(m, "\"");
     for (int32_t l : labels)
-      std::fprintf(f, "3 %d \"%s\"\n", tags.volumePhysical.at(l), oneLine(materialName(m, l), "\"").c_str());
+      std::fprintf(f, "3 %d \"%s\"\n", tags.volumePhysical.at(l), names.at(l).c_str());
     for (const auto& kv : patches)
       std::fprintf(f, "2 %d \"%s\"\n", tags.surfaceBase + surfTag.at(kv.first), patchName(kv.first).c_str());
     std::fprintf(f, "$EndPhysicalNames\n");

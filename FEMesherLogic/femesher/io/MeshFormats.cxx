@@ -93,6 +93,38 @@ std::map<int32_t, std::string> abaqusElsetNames(const TetMesh& m) {
   return elset;
 }
 
+std::map<int32_t, std::string> febioNames(const TetMesh& m) {
+  std::map<int32_t, std::string> out;
+  std::set<std::string> used = {"boundary", "nodes", "all_nodes"};
+  for (int32_t l : meshLabels(m)) {
+    std::string base;
+    for (char c : materialName(m, l)) {
+      const unsigned char u = static_cast<unsigned char>(c);
+      if (u < 128 && std::isalnum(u)) base += c;
+      else if (!base.empty() && base.back() != '_') base += '_';
+    }
+    if (base.size() > 48) base.resize(48);
+    while (!base.empty() && base.back() == '_') base.pop_back();
+    if (base.empty()) base = "label_" + labelToken(l);
+    else if (std::isdigit(static_cast<unsigned char>(base[0]))) base = "m_" + base;
+    std::string n = base;
+    if (used.count(n)) n = base + "_" + labelToken(l);
+    for (int k = 2; used.count(n); ++k) n = base + "_" + labelToken(l) + "_" + std::to_string(k);
+    used.insert(n);
+    out[l] = n;
+  }
+  return out;
+}
+
+std::map<int32_t, std::string> uniqueMaterialNames(const TetMesh& m, const char* drop) {
+  std::map<int32_t, std::string> out;
+  std::map<std::string, int> count;
+  for (int32_t l : meshLabels(m)) ++count[out[l] = oneLine(materialName(m, l), drop)];
+  for (auto& [l, name] : out)
+    if (count[name] > 1 || name.empty()) name += " (label " + std::to_string(l) + ")";
+  return out;
+}
+
 Result<TetMesh> fail(ErrorCode code, const std::string& path, const std::string& what) {
   return Result<TetMesh>(code, "Cannot read mesh '" + path + "': " + what);
 }

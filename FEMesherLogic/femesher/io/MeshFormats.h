@@ -87,6 +87,18 @@ struct SolverDeckTables {
   std::map<int32_t, std::string> elset;
 };
 
+/// Unique, XML-safe identifiers of the materials for FEBio, one per label: the material's name
+/// with every run of characters other than ASCII letters and digits turned into one underscore
+/// ("femoral cartilage" -> "femoral_cartilage"), starting with a letter ("m_" before a leading
+/// digit; "label_<label>" for a name with no letter or digit), at most 48 characters, never
+/// "boundary" or "nodes" and never with "__" inside (FEBio surface and node-set names join
+/// identifiers with "__"); on a clash "_<label>" is appended.
+std::map<int32_t, std::string> febioNames(const TetMesh& m);
+
+/// One-line material names that are unique within the mesh (Gmsh physical names): the name, or
+/// "<name> (label N)" when another material has the same name; `drop` characters removed.
+std::map<int32_t, std::string> uniqueMaterialNames(const TetMesh& m, const char* drop = "");
+
 /// Label as it may appear inside an Abaqus identifier: 7 -> "7", -7 -> "N7".
 std::string labelToken(int32_t l);
 

@@ -3,6 +3,7 @@
 #include <femesher/io/MeshFormats.h>
 #include <femesher/io/MeshIO.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <map>
 
@@ -30,7 +31,36 @@ ExportOptions exportOptionsFrom(const MeshingParameters& params) {
   ExportOptions o;
   o.defaultMaterial = params.defaultMaterial;
   o.materialProperties = params.materialProperties;
+  const ElasticProperties builtIn;
+  o.defaultMaterialGiven = params.defaultMaterial.youngsModulus != builtIn.youngsModulus ||
+                           params.defaultMaterial.poissonRatio != builtIn.poissonRatio ||
+                           params.defaultMaterial.density != builtIn.density;
   return o;
+}
+
+std::string defaultPropertiesWarning(const TetMesh& mesh, const std::string& path,
+                                     const ExportOptions& options) {
+  const std::string ext = fileExtension(path);
+  if ((ext != ".inp" && ext != ".feb") || options.defaultMaterialGiven) return {};
+  std::string list;
+  size_t count = 0;
+  for (int32_t l : meshio::meshLabels(mesh)) {
+    if (options.materialProperties.count(l)) continue;
+    list += (list.empty() ? "" : ", ") + std::string("label ") + std::to_string(l) + " (" +
+            meshio::oneLine(meshio::materialName(mesh, l)) + ")";
+    ++count;
+  }
+  if (count == 0) return {};
+  const ElasticProperties& d = options.defaultMaterial;
+  char values[128];
+  std::snprintf(values, sizeof values, "E = %g MPa, nu = %g, density = %g t/mm^3", d.youngsModulus,
+                d.poissonRatio, d.density);
+  return "'" + path + "': " + std::to_string(count) +
+         (count == 1 ? " material has no properties of yours and gets"
+                     : " materials have no properties of yours and get") +
+         " the built-in default " + values + ": " + list +
+         ". Set them with --set material.<label>.E=... (and .nu, .density), default.E=... for "
+         "all, or the panel's material table.";
 }
 
 std::vector<std::string> supportedMeshExtensions() {

@@ -12,7 +12,11 @@
 ///  - .msh  Gmsh MSH 4.1 ASCII: a named physical volume per material, a named physical surface
 ///          per interface.
 ///  - .mesh Medit (INRIA) ASCII: tets with material refs, interface triangles with refs.
-///  - .feb  FEBio 2.5 model: nodes, a solid domain per material, materials (neo-Hookean from E/nu).
+///  - .feb  FEBio input file, format 4.0: Module solid, a static Control step, a named material
+///          per label (neo-Hookean from E/nu, density), Nodes, an Elements domain (tet4) per
+///          material with ids unique over the file, NodeSets per material, interface and outer
+///          boundary, a Surface per interface (<a>__<b>, outward from a) and per material's outer
+///          boundary (<a>__boundary), and a SolidDomain per material. Names: `febioNames`.
 ///  - .stl  ASCII STL: one `solid` per interface (outward from the lower label).
 ///  - .vtk  legacy VTK (binary, Slicer's "SPACE=LPS" header, which Slicer reads): cell array
 ///          `labels`, no field data.
@@ -31,12 +35,24 @@ namespace femesher {
 struct ExportOptions {
   ElasticProperties defaultMaterial;                       ///< for every material ...
   std::map<int32_t, ElasticProperties> materialProperties;  ///< ... unless overridden here
+  /// True when the user chose `defaultMaterial` (default.E, .nu or .density differ from the
+  /// built-in values); false means it is the silent built-in default (see
+  /// `defaultPropertiesWarning`).
+  bool defaultMaterialGiven = false;
   /// Extra provenance written where the format allows (VTU field data, comments).
   std::string provenance;
 };
 
 /// Export options from the meshing parameters (material properties).
 ExportOptions exportOptionsFrom(const MeshingParameters& params);
+
+/// The warning a solver deck deserves before it is written to `path` (.inp or .feb; "" for other
+/// formats): the materials of `mesh` the user gave no properties for (no material.<label>.E,
+/// .nu or .density, and no default.*), which the deck gets with the built-in E = 1000 MPa,
+/// nu = 0.3, density 1e-9 t/mm^3: one sentence naming the file, those materials and how to set
+/// them. "" when every material has the user's properties.
+std::string defaultPropertiesWarning(const TetMesh& mesh, const std::string& path,
+                                     const ExportOptions& options);
 
 /// Extensions `writeMesh` accepts, e.g. {".vtu", ".inp", ".msh", ".mesh", ".feb", ".stl"}.
 std::vector<std::string> supportedMeshExtensions();

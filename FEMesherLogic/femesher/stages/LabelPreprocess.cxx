@@ -13,11 +13,19 @@ namespace femesher {
 
 namespace {
 
-std::string labelName(const LabelVolume& in, int32_t label) {
+/// The user's name of `label`, else the label map's, else "".
+std::string givenName(const LabelVolume& in, const LabelPreprocessParameters& params, int32_t label) {
+  if (auto it = params.names.find(label); it != params.names.end() && !it->second.empty())
+    return it->second;
+  const Material* m = findMaterial(in.materials, label);
+  return m ? m->name : std::string();
+}
+
+std::string labelName(const LabelVolume& in, const LabelPreprocessParameters& params, int32_t label) {
   std::ostringstream os;
   os << "Label " << label;
-  const Material* m = findMaterial(in.materials, label);
-  if (m && !m->name.empty()) os << " (" << m->name << ")";
+  const std::string name = givenName(in, params, label);
+  if (!name.empty()) os << " (" << name << ")";
   return os.str();
 }
 
@@ -29,7 +37,7 @@ void warnAboutExclusions(const LabelVolume& input, const LabelPreprocessParamete
       ctx.warn("Label " + std::to_string(label) +
                " is excluded, but the label map has no such label: nothing to exclude.");
     } else if (how == Exclusion::Background) {
-      ctx.warn(labelName(input, label) +
+      ctx.warn(labelName(input, params, label) +
                " is excluded: its voxels are background (the mesh has a cavity or a cut there).");
     }
   }
@@ -95,10 +103,11 @@ std::map<int32_t, std::map<uint16_t, size_t>> fillFromNeighbours(
 }
 
 /// Says where the voxels of a material excluded with MergeIntoNeighbour went.
-void warnMerged(const LabelVolume& input, const PreprocessedVolume& out, int32_t label,
+void warnMerged(const LabelVolume& input, const LabelPreprocessParameters& params,
+                const PreprocessedVolume& out, int32_t label,
                 const std::map<int32_t, std::map<uint16_t, size_t>>& received, RunContext& ctx) {
   std::ostringstream os;
-  os << labelName(input, label) << " is excluded and merged into its neighbours:";
+  os << labelName(input, params, label) << " is excluded and merged into its neighbours:";
   auto it = received.find(label);
   if (it == received.end()) return;
   std::vector<std::pair<size_t, uint16_t>> byCount;
@@ -188,7 +197,7 @@ PreprocessedVolume preprocessLabels(const LabelVolume& input,
   }
   for (int32_t d : dropped) {
     std::ostringstream os;
-    os << labelName(in, d) << " has only " << counts[d] << " voxels (< min_voxels = " << params.minVoxels
+    os << labelName(in, params, d) << " has only " << counts[d] << " voxels (< min_voxels = " << params.minVoxels
        << "): dropped, its voxels join the neighbouring label.";
     ctx.warn(os.str());
   }
@@ -212,7 +221,8 @@ PreprocessedVolume preprocessLabels(const LabelVolume& input,
     const Material* m = findMaterial(in.materials, k);
     Material mat;
     mat.id = k;
-    mat.name = m && !m->name.empty() ? m->name : "label " + std::to_string(k);
+    const std::string name = givenName(in, params, k);
+    mat.name = !name.empty() ? name : "label " + std::to_string(k);
     mat.color = m ? m->color : defaultLabelColor(k);
     out.materials.push_back(mat);
   }
@@ -265,7 +275,7 @@ PreprocessedVolume preprocessLabels(const LabelVolume& input,
 
   const auto received = fillFromNeighbours(out, kDropped, droppedVoxels, droppedFrom,
                                            std::set<int32_t>(merged.begin(), merged.end()));
-  for (int32_t m : merged) warnMerged(input, out, m, received, ctx);
+  for (int32_t m : merged) warnMerged(input, params, out, m, received, ctx);
 
   out.voxelCounts.assign(out.userLabel.size(), 0);
   for (uint16_t l : out.labels) ++out.voxelCounts[l];

@@ -9,6 +9,9 @@
 ///
 /// A label map without any 0 is legal: every label is a material and the outer boundary is the
 /// volume's box (the padding margin provides the outside).
+///
+/// The material table of the result names each material after the user's name for it
+/// (`names`), else the label map's own name, else "label N".
 
 #include <femesher/Types.h>
 #include <femesher/WorkingGrid.h>
@@ -16,6 +19,7 @@
 #include <array>
 #include <cstdint>
 #include <map>
+#include <string>
 #include <vector>
 
 namespace femesher {
@@ -36,6 +40,11 @@ struct LabelPreprocessParameters {
   /// Materials excluded by the user (user label id -> what becomes of its voxels). A merged
   /// material's warning names the material(s) its voxels joined.
   std::map<int32_t, Exclusion> excluded;
+  /// Material names given by the user (user label id -> name, `material.<label>.name`): they
+  /// replace the names the label map brings (a .seg.nrrd's segment names, a colour table's, or
+  /// "label N") in the material table of the working grid, hence of the mesh, every export and
+  /// the run report. Empty names are ignored.
+  std::map<int32_t, std::string> names;
 };
 
 /// The working grid of all later stages (see WorkingGrid.h for its frames) and its labels.

@@ -258,10 +258,6 @@ bool flatPatch(const Editor& m, int32_t v, double tolerance, Vec3& normal) {
   return true;
 }
 
-/// A floating piece with a tet below the target angle goes when lighter than this many times
-/// the fragment limit (OptimizeParameters::minFragmentVoxels).
-constexpr double kBadFragmentFactor = 10;
-
 /// How many times the improvement runs a round that may insert vertices (see improve).
 constexpr int kInsertingRounds = 2;
 
@@ -693,78 +689,6 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
   eraseTets(points, tets, labels, dead);
 }
 
-
-/// Removes the face-connected pieces of the mesh (over all materials) lighter than `minVolume`
-/// mm^3, or lighter than `badMinVolume` when one of their tets is below `target` degrees (a
-/// floating piece no operation could mend: every face of it is outer), except a piece holding a
-/// material's last tets (and the points only they used).
-void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
-                     std::vector<int32_t>& labels, double minVolume, double badMinVolume,
-                     double target, OptimizeResult& r) {
-  const size_t n = tets.size();
-  if (n == 0) return;
-  // Union-find over tets sharing a face (faces matched by sorting their vertex triples).
-  std::vector<uint32_t> parent(n);
-  std::iota(parent.begin(), parent.end(), 0u);
-  auto find = [&](uint32_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  };
-  std::vector<std::pair<std::array<int32_t, 3>, uint32_t>> faces;
-  faces.reserve(4 * n);
-  for (uint32_t t = 0; t < n; ++t)
-    for (int k = 0; k < 4; ++k) {
-      std::array<int32_t, 3> f;
-      int c = 0;
-      for (int i = 0; i < 4; ++i)
-        if (i != k) f[size_t(c++)] = tets[t][size_t(i)];
-      std::sort(f.begin(), f.end());
-      faces.push_back({f, t});
-    }
-  std::sort(faces.begin(), faces.end());
-  for (size_t i = 1; i < faces.size(); ++i)
-    if (faces[i].first == faces[i - 1].first) {
-      const uint32_t a = find(faces[i].second), b = find(faces[i - 1].second);
-      if (a != b) parent[a] = b;
-    }
-  std::vector<double> volume(n, 0), worst(n, 180);
-  std::vector<size_t> perLabel;
-  for (uint32_t t = 0; t < n; ++t) {
-    const auto& T = tets[t];
-    const Vec3 &A = points[size_t(T[0])], &B = points[size_t(T[1])], &C = points[size_t(T[2])],
-               &D = points[size_t(T[3])];
-    volume[find(t)] += std::fabs(dot(cross(sub(B, A), sub(C, A)), sub(D, A))) / 6;
-    worst[find(t)] = std::min(worst[find(t)], tetMinDihedral(A, B, C, D));
-    if (size_t(labels[t]) >= perLabel.size()) perLabel.resize(size_t(labels[t]) + 1, 0);
-    ++perLabel[size_t(labels[t])];
-  }
-  // Lightest pieces first, so that a material keeps its largest piece when all are light.
-  auto light = [&](uint32_t root) {
-    return volume[root] < minVolume || (volume[root] < badMinVolume && worst[root] < target);
-  };
-  std::vector<uint32_t> roots;
-  for (uint32_t t = 0; t < n; ++t)
-    if (find(t) == t && light(t)) roots.push_back(t);
-  std::sort(roots.begin(), roots.end(),
-            [&](uint32_t a, uint32_t b) { return volume[a] != volume[b] ? volume[a] < volume[b] : a < b; });
-  std::vector<std::vector<uint32_t>> members(n);
-  for (uint32_t t = 0; t < n; ++t)
-    if (light(find(t))) members[find(t)].push_back(t);
-  std::vector<char> drop(n, 0);
-  for (uint32_t root : roots) {
-    std::vector<size_t> take(perLabel.size(), 0);
-    for (uint32_t t : members[root]) ++take[size_t(labels[t])];
-    bool last = false;
-    for (size_t l = 0; l < take.size(); ++l) last |= take[l] > 0 && take[l] >= perLabel[l];
-    if (last) continue;
-    for (size_t l = 0; l < take.size(); ++l) perLabel[l] -= take[l];
-    for (uint32_t t : members[root]) drop[t] = 1;
-    ++r.fragments;
-    r.fragmentTets += members[root].size();
-    r.fragmentVolume += volume[root];
-  }
-  if (r.fragmentTets > 0) eraseTets(points, tets, labels, drop);
-}
 
 }  // namespace
 

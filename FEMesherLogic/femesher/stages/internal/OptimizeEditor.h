@@ -261,5 +261,18 @@ double faceDistance(const Editor& m, const OptimizeInterfaces& interfaces,
 /// or no move helps. `kind` gets 2 (interface), 3 (triple line) or 4 (junction point).
 bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& interfaces, int& kind);
 
+/// A floating piece with a tet below the target angle goes when lighter than this many times
+/// the fragment limit (OptimizeParameters::minFragmentVoxels).
+constexpr double kBadFragmentFactor = 10;
+
+/// Removes the face-connected pieces of the mesh (over all materials) lighter than `minVolume`
+/// mm^3, or lighter than `badMinVolume` when one of their tets is below `target` degrees (a
+/// floating piece no operation could mend: every face of it is outer), except a piece holding a
+/// material's last tets (and the points only they used); counts them in `r`
+/// (internal/Fragments.cxx).
+void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
+                     std::vector<int32_t>& labels, double minVolume, double badMinVolume,
+                     double target, OptimizeResult& r);
+
 }  // namespace optimize_detail
 }  // namespace femesher
