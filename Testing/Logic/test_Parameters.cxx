@@ -113,7 +113,7 @@ TEST(Parameters, UserDefaultsAreTheStageDefaults) {
   EXPECT_EQ(p.particles.maxIterations, ParticleSystemParameters{}.maxIterations);
   EXPECT_EQ(getParameter(p, "facet_distance"), "0.5");
   EXPECT_EQ(p.boundary.facetDistance, BoundaryMeshParameters{}.facetDistance);
-  EXPECT_EQ(getParameter(p, "max_radius_edge_ratio"), "2");
+  EXPECT_EQ(getParameter(p, "max_radius_edge_ratio"), "3");
   EXPECT_EQ(p.volume.maxRadiusEdgeRatio, VolumeMeshParameters{}.maxRadiusEdgeRatio);
   EXPECT_EQ(getParameter(p, "sliver_peel_distance"), "0.3");
   EXPECT_EQ(p.optimize.peelDistance, OptimizeParameters{}.peelDistance);

@@ -26,7 +26,7 @@ namespace femesher {
 class RunContext;
 
 struct VolumeMeshParameters {
-  double maxRadiusEdgeRatio = 2.0;  ///< 0 = no quality refinement; below about 1.2 TetGen may not terminate
+  double maxRadiusEdgeRatio = 3.0;  ///< 0 = no quality refinement; below about 1.2 TetGen may not terminate
   double minDihedralAngle = 12.0;   ///< degrees
   double maxTetVolume = 0;          ///< mm^3, 0 = none
   bool preserveInterfaces = true;   ///< -Y
