@@ -30,7 +30,7 @@ void CliProgress::start(const std::string& what) {
 
 void CliProgress::clearBar() {
   if (!barShown_) return;
-  std::fprintf(stderr, "\r%-60s\r", "");
+  std::fprintf(stderr, "\r%-79s\r", "");  // wider than the bar line
   barShown_ = false;
 }
 

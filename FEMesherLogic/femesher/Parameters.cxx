@@ -422,6 +422,9 @@ Status setParameter(MeshingParameters& params, const std::string& key, const std
       known += (known.empty() ? "" : ", ") + x.desc.key;
       keys.push_back(x.desc.key);
     }
+    // "materal.1.E": offer the material key with the same label and field.
+    if (const auto dot = key.find('.'); dot != std::string::npos)
+      keys.push_back("material" + key.substr(dot));
     return {ErrorCode::InvalidArgument,
             "Unknown parameter '" + key + "'." + didYouMean(key, keys) + " Known parameters: " +
                 known + ", material.<label>.E|nu|density|name|exclude."};

@@ -109,6 +109,7 @@ cases = [
     (["mesh", phantom, "-o", out, "--set", "edge_lenght_factor=3"], "'edge_lenght_factor'",
      "'edge_length_factor'"),
     (["mesh", phantom, "-o", out, "--set", "material.1.densty=1.1"], "'densty'", "'density'"),
+    (["mesh", phantom, "-o", out, "--set", "materal.1.E=500"], "'materal.1.E'", "'material.1.E'"),
     (["mesh", phantom, "-o", out, "--voxel-refinment"], "'--voxel-refinment'", "'--voxel-refinement'"),
     (["mesh", phantom, "-o", out, "--target-edge-lenght", "2"], "'--target-edge-lenght'",
      "'--target-edge-length'"),
