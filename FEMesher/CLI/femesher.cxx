@@ -7,6 +7,7 @@
 #include <femesher/Phantom.h>
 #include <femesher/Pipeline.h>
 #include <femesher/RunReport.h>
+#include <femesher/Spelling.h>
 #include <femesher/Version.h>
 #include <femesher/io/AtomicFile.h>
 #include <femesher/io/LabelMapIO.h>
@@ -86,6 +87,7 @@ struct MeshOptions {
   std::string saveParameters;
   std::string labelNames;  ///< colour table naming the labels (--label-names)
   bool quiet = false;
+  bool slicerInvocation = false;  ///< run as Slicer runs CLI modules (no subcommand)
   std::map<std::string, std::string> direct;   ///< --<parameter-key> value (one flag per parameter)
   std::map<std::string, std::string> negated;  ///< --no-<boolean-key> [value]: key = !value
 };
@@ -236,7 +238,7 @@ int runMesh(const MeshOptions& o) {
   }
   if (o.outputs.empty() && o.report.empty()) return 0;
 
-  cli::CliProgress progress(cli::CliProgress::detect(o.quiet));
+  cli::CliProgress progress(cli::CliProgress::detect(o.quiet, o.slicerInvocation));
   progress.start("Meshing " + o.input);
   auto volume = readNamedLabelMap(o.input, o.labelNames);
   if (!volume) {
@@ -255,6 +257,52 @@ int runMesh(const MeshOptions& o) {
     return fail(Status(s.code(), o.input + ": " + s.message()));  // name the file
   }
   return writeRunOutputs(result.value(), params.value(), o, o.input, progress);
+}
+
+/// The run's summary for people: counts, low-angle tets, Dice range and boundary distances (when
+/// fidelity was computed) and the files written; the "Elements:" line (worst angle and status)
+/// follows it.
+std::string runSummary(const PipelineResult& r, const std::vector<std::string>& written) {
+  std::string text;
+  char line[512];
+  auto add = [&](const char* label, const std::string& value) {
+    std::snprintf(line, sizeof line, "  %-14s %s\n", label, value.c_str());
+    text += line;
+  };
+  const size_t tets = r.mesh.tets.size();
+  std::snprintf(line, sizeof line, "%zu tets, %zu vertices, %zu materials, %.1f s", tets,
+                r.mesh.points.size(), r.mesh.materials.size(), r.totalSeconds);
+  text += "Summary\n";
+  add("Mesh", line);
+  const std::pair<int, size_t> below[] = {{5, r.quality.minDihedralBelow5},
+                                          {10, r.quality.minDihedralBelow10},
+                                          {15, r.quality.minDihedralBelow15}};
+  for (const auto& [deg, count] : below) {
+    char label[32];
+    std::snprintf(label, sizeof label, "Below %d deg", deg);
+    std::snprintf(line, sizeof line, "%zu tets (%.3f %%)", count,
+                  tets ? 100.0 * double(count) / double(tets) : 0.0);
+    add(label, line);
+  }
+  if (r.hasFidelity && !r.fidelity.materials.empty()) {
+    const auto& m = r.fidelity.materials;
+    const auto [lo, hi] = std::minmax_element(
+        m.begin(), m.end(), [](const auto& a, const auto& b) { return a.dice < b.dice; });
+    const std::string who = lo->name.empty()
+                                ? "label " + std::to_string(lo->label)
+                                : lo->name + ", label " + std::to_string(lo->label);
+    std::snprintf(line, sizeof line, "%.4f lowest (%s) .. %.4f highest", lo->dice, who.c_str(),
+                  hi->dice);
+    add("Volume Dice", line);
+    std::snprintf(line, sizeof line,
+                  "%.3f voxels mesh to labels, %.3f voxels labels to mesh (voxel %.3g mm)",
+                  r.fidelity.meshToLabels.p99, r.fidelity.labelsToMesh.p99, r.fidelity.voxelSize);
+    add("Boundary p99", line);
+  }
+  std::string files;
+  for (const auto& f : written) files += (files.empty() ? "" : ", ") + f;
+  if (!files.empty()) add("Wrote", files);
+  return text;
 }
 
 /// Writes a finished run's meshes and report, then its summary on stderr.
@@ -279,14 +327,10 @@ int writeRunOutputs(const PipelineResult& result, const MeshingParameters& param
   }
   progress.finish(true);
   for (const auto& w : exportWarnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
-  if (!o.quiet) {
-    const auto& r = result;
-    std::fprintf(stderr, "%zu vertices, %zu tets, %zu materials in %.1f s\n", r.mesh.points.size(),
-                 r.mesh.tets.size(), r.mesh.materials.size(), r.totalSeconds);
-    for (const auto& t : r.timings) std::fprintf(stderr, "  %-20s %8.2f s\n", t.name.c_str(), t.seconds);
-    if (r.hasFidelity) std::fprintf(stderr, "%s", fidelityReportToText(r.fidelity).c_str());
-    for (const auto& out : o.outputs) std::fprintf(stderr, "wrote %s\n", out.c_str());
-  }
+  std::vector<std::string> written = o.outputs;
+  if (!o.report.empty()) written.push_back(o.report);
+  if (!o.quiet && progress.mode() != cli::CliProgress::Mode::Slicer)
+    std::fputs(runSummary(result, written).c_str(), stderr);
   // The element check's one line, even with --quiet when the status is poor_elements.
   const MeshCheckResult& check = result.meshCheck;
   if (!o.quiet || check.poor())
@@ -301,7 +345,7 @@ int runOptimize(const std::string& meshPath, const std::string& labelsPath, cons
   if (!params) return fail(params.status());
   if (o.outputs.empty()) return fail({ErrorCode::InvalidArgument, "Nothing to write: give -o OUTPUT."});
   if (Status s = checkOutputs(o.outputs); !s) return fail(s);
-  cli::CliProgress progress(cli::CliProgress::detect(o.quiet));
+  cli::CliProgress progress(cli::CliProgress::detect(o.quiet, false));
   progress.start("Optimizing " + meshPath);
   auto mesh = readMesh(meshPath);
   auto labels = mesh ? readLabelMap(labelsPath) : Result<LabelVolume>(mesh.status());
@@ -522,6 +566,44 @@ void addMeshOptions(CLI::App* cmd, MeshOptions& o, bool positionalOutput) {
   }
 }
 
+/// Every long and short flag of `cmd` ("--voxel-refinement", "-o", ...).
+std::vector<std::string> flagNames(const CLI::App* cmd) {
+  std::vector<std::string> names;
+  for (const CLI::Option* opt : cmd->get_options()) {
+    for (const auto& l : opt->get_lnames()) names.push_back("--" + l);
+    for (const auto& s : opt->get_snames()) names.push_back("-" + s);
+  }
+  return names;
+}
+
+/// A failed parse. CLI11's own message, except for unknown flags that are close to a known one
+/// of the command being parsed: those get an error naming the flag and the likely one.
+int parseFailure(CLI::App& app, const CLI::ParseError& e) {
+  if (dynamic_cast<const CLI::ExtrasError*>(&e)) {
+    const CLI::App* cmd = &app;
+    if (!app.get_subcommands().empty()) cmd = app.get_subcommands().front();
+    std::vector<std::string> known = flagNames(cmd);
+    if (cmd != &app)
+      for (const auto& f : flagNames(&app)) known.push_back(f);
+    std::string message;
+    for (const auto& arg : app.remaining(true)) {
+      if (arg.size() < 2 || arg[0] != '-') continue;
+      const std::string flag = arg.substr(0, arg.find('='));
+      const std::string hint = didYouMean(flag, known);
+      if (!hint.empty())
+        message += (message.empty() ? "" : "\n") + std::string("error [") +
+                   errorCodeName(ErrorCode::InvalidArgument) + "]: unknown option '" + flag +
+                   "'." + hint;
+    }
+    if (!message.empty()) {
+      std::fprintf(stderr, "%s\nRun with --help for more information.\n", message.c_str());
+      return exitCodeFor(ErrorCode::InvalidArgument);
+    }
+  }
+  const int rc = app.exit(e);
+  return rc == 0 ? 0 : exitCodeFor(ErrorCode::InvalidArgument);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -533,6 +615,15 @@ int main(int argc, char** argv) {
   bool slicerStyle = argc > 1;
   for (int i = 1; i < argc; ++i)
     if (std::find(commands.begin(), commands.end(), argv[i]) != commands.end()) slicerStyle = false;
+  // A misspelt command ("mseh") would otherwise be taken for Slicer's input file.
+  if (slicerStyle && argv[1][0] != '-' && !fs::exists(argv[1])) {
+    const std::vector<std::string> names(commands.begin(), commands.begin() + 8);
+    if (std::string hint = didYouMean(argv[1], names); !hint.empty())
+      return fail({ErrorCode::InvalidArgument,
+                   std::string("Unknown command '") + argv[1] + "'." + hint +
+                       " Commands: mesh, quality, info, phantom, medial-axis, sizing, optimize, "
+                       "parameters (see femesher --help)."});
+  }
   // Bare boolean flags (`--voxel_refinement`, `--no_voxel_refinement`) become `--flag=true`.
   std::vector<std::string> args =
       expandBareBooleanFlags(std::vector<std::string>(argv + 1, argv + argc));
@@ -549,13 +640,13 @@ int main(int argc, char** argv) {
   app.add_flag("--xml", xml, "Print the Slicer CLI module description and exit");
 
   MeshOptions meshOpts;
+  meshOpts.slicerInvocation = slicerStyle;
   if (slicerStyle) {
     addMeshOptions(&app, meshOpts, true);
     try {
       app.parse(args);
     } catch (const CLI::ParseError& e) {
-      const int rc = app.exit(e);
-      return rc == 0 ? 0 : exitCodeFor(ErrorCode::InvalidArgument);
+      return parseFailure(app, e);
     }
     return runMesh(meshOpts);
   }
@@ -626,8 +717,7 @@ int main(int argc, char** argv) {
   try {
     app.parse(args);
   } catch (const CLI::ParseError& e) {
-    const int rc = app.exit(e);
-    return rc == 0 ? 0 : exitCodeFor(ErrorCode::InvalidArgument);
+    return parseFailure(app, e);
   }
   if (xml) {
     std::fputs(cli::slicerXml().c_str(), stdout);

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/Parameters.h>
+#include <femesher/Spelling.h>
 
 #include <nlohmann/json.hpp>
 
@@ -338,8 +339,9 @@ Status setMaterialParameter(MeshingParameters& params, const std::string& key,
   }
   if (field != "E" && field != "nu" && field != "density")
     return {ErrorCode::InvalidArgument,
-            "Parameter '" + key + "': unknown material field '" + field +
-                "' (E, nu, density, name, exclude)"};
+            "Parameter '" + key + "': unknown material field '" + field + "'." +
+                didYouMean(field, {"E", "nu", "density", "name", "exclude"}) +
+                " Use E, nu, density, name or exclude."};
   if (!parseNumber(value, "double", x))
     return {ErrorCode::InvalidArgument, "Parameter '" + key + "': '" + value + "' is not a number"};
   auto it = params.materialProperties.find(int32_t(label));
@@ -415,10 +417,17 @@ Status setParameter(MeshingParameters& params, const std::string& key, const std
   const Binding* b = findBinding(key);
   if (!b) {
     std::string known;
-    for (const auto& x : bindings()) known += (known.empty() ? "" : ", ") + x.desc.key;
+    std::vector<std::string> keys = {"sizing", "surface_mesher"};
+    for (const auto& x : bindings()) {
+      known += (known.empty() ? "" : ", ") + x.desc.key;
+      keys.push_back(x.desc.key);
+    }
+    // "materal.1.E": offer the material key with the same label and field.
+    if (const auto dot = key.find('.'); dot != std::string::npos)
+      keys.push_back("material" + key.substr(dot));
     return {ErrorCode::InvalidArgument,
-            "Unknown parameter '" + key + "'. Known parameters: " + known +
-                ", material.<label>.E|nu|density|name|exclude."};
+            "Unknown parameter '" + key + "'." + didYouMean(key, keys) + " Known parameters: " +
+                known + ", material.<label>.E|nu|density|name|exclude."};
   }
   double x = 0;
   if (!parseNumber(value, b->desc.type, x))
