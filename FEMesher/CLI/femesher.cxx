@@ -56,17 +56,12 @@ Status writeText(const std::string& path, const std::string& text) {
   });
 }
 
-/// Checks outputs before a long run: supported extension and existing folder.
-Status checkOutputs(const std::vector<std::string>& outputs) {
-  const auto exts = supportedMeshExtensions();
+/// Checks outputs before a long run: supported extension, a format that can hold the
+/// element order asked for (element_order 2: not .mesh or .stl), and an existing folder.
+Status checkOutputs(const std::vector<std::string>& outputs, const MeshingParameters& params) {
+  const ExportOptions eo = exportOptionsFrom(params);
   for (const auto& o : outputs) {
-    const std::string ext = fileExtension(o);
-    if (std::find(exts.begin(), exts.end(), ext) == exts.end()) {
-      std::string list;
-      for (const auto& e : exts) list += (list.empty() ? "" : " ") + e;
-      return {ErrorCode::InvalidArgument,
-              "Output '" + o + "': unsupported extension '" + ext + "'. Use one of: " + list};
-    }
+    if (Status s = checkExportable(o, eo); !s) return s;
     const fs::path dir = fs::path(o).has_parent_path() ? fs::path(o).parent_path() : fs::path(".");
     if (!fs::is_directory(dir))
       return {ErrorCode::WriteFailed,
@@ -232,7 +227,7 @@ int runMesh(const MeshOptions& o) {
   if (!params) return fail(params.status());
   if (o.outputs.empty() && o.report.empty() && o.saveParameters.empty())
     return fail({ErrorCode::InvalidArgument, "Nothing to write: give at least one -o OUTPUT."});
-  if (Status s = checkOutputs(o.outputs); !s) return fail(s);
+  if (Status s = checkOutputs(o.outputs, params.value()); !s) return fail(s);
   if (!o.saveParameters.empty()) {
     if (Status s = writeText(o.saveParameters, parametersToJson(params.value())); !s) return fail(s);
   }
@@ -344,7 +339,7 @@ int runOptimize(const std::string& meshPath, const std::string& labelsPath, cons
   auto params = buildParameters(o);
   if (!params) return fail(params.status());
   if (o.outputs.empty()) return fail({ErrorCode::InvalidArgument, "Nothing to write: give -o OUTPUT."});
-  if (Status s = checkOutputs(o.outputs); !s) return fail(s);
+  if (Status s = checkOutputs(o.outputs, params.value()); !s) return fail(s);
   cli::CliProgress progress(cli::CliProgress::detect(o.quiet, false));
   progress.start("Optimizing " + meshPath);
   auto mesh = readMesh(meshPath);

@@ -241,6 +241,12 @@ const std::vector<Binding>& bindings() {
          "Mass density written for every material in solver exports.", true},
         [](MeshingParameters& p, double x) { p.defaultMaterial.density = x; },
         [](const MeshingParameters& p) { return p.defaultMaterial.density; });
+    add({"element_order", "int", "", "", 1, 2, "Element order",
+         "1: 4-node tets (C3D4, tet4). 2: 10-node tets (C3D10 in .inp, Gmsh type 11 in .msh, "
+         "VTK quadratic tetra in .vtu/.vtk, tet10 in .feb), one mid-edge node per edge at the "
+         "straight edge midpoint, shared across materials. .mesh and .stl cannot hold them.", true},
+        [](MeshingParameters& p, double x) { p.elementOrder = int(x); },
+        [](const MeshingParameters& p) { return double(p.elementOrder); });
     return v;
   }();
   return b;

@@ -59,6 +59,9 @@ struct MeshingParameters {
   ElasticProperties defaultMaterial;
   /// Per-label overrides (user label id -> properties).
   std::map<int32_t, ElasticProperties> materialProperties;
+  /// Element order of the exported tets: 1 (4 nodes) or 2 (10 nodes, straight-edge midpoints;
+  /// .inp, .msh, .vtu, .vtk, .feb only). Key `element_order`.
+  int elementOrder = 1;
 };
 
 /// Description of one settable parameter.

@@ -31,8 +31,9 @@ def run(args, **kw):
     return subprocess.run(args, capture_output=True, text=True, stdin=subprocess.DEVNULL, **kw)
 
 
-def mesh_volume(name, source=None, extra=()):
-    """Meshes `source` (a label map path; None = the built-in phantom) into every format."""
+def mesh_volume(name, source=None, extra=(), exts=EXTS):
+    """Meshes `source` (a label map path; None = the built-in phantom) into every format (or
+    those of `exts`)."""
     tmp = tempfile.mkdtemp(prefix="exports_%s_" % name, dir=os.environ.get("FEMESHER_TMP"))
     if source is None:
         source = os.path.join(tmp, "phantom.nrrd")
@@ -46,7 +47,7 @@ def mesh_volume(name, source=None, extra=()):
         sys.exit(0)
     base = os.path.join(tmp, name)
     args = [CLI, "mesh", source, "--report", base + ".json", "-q"]
-    for e in EXTS:
+    for e in exts:
         args += ["-o", base + e]
     args += list(extra)
     r = run(args, timeout=1800)

@@ -176,4 +176,73 @@ warns = [w for w in report.get("warnings", []) if "built-in default" in w]
 check(len(warns) == 2 and all("label 2 (" in w and "label 3 (" in w and "label 1 (" not in w for w in warns),
       "report warns (once per deck: .inp, .feb) about labels 2 and 3 only: %s" % warns)
 
+# --- element_order=2: tet10 elements, tri6 surfaces, node sets with the mid-edge nodes ------------
+# FEBio's tet10 (FETet10 shape functions: H[4..9] = 4ru, 4rs, 4su, 4tu, 4rt, 4st) puts nodes 5..10
+# on edges 1-2, 2-3, 3-1, 1-4, 2-4, 3-4; tri6 (FETri6) nodes 4..6 on edges 1-2, 2-3, 3-1. meshio
+# reads the .msh tetra10 in that (VTK) order too, so the elements must match node for node.
+base2, report2, _ = mesh_volume("febio_tet10", None, extra + ["--set", "element_order=2"], exts=[".msh", ".feb"])
+msh2 = meshio.read(base2 + ".msh")
+P2 = msh2.points
+T2 = np.concatenate([c.data for c in msh2.cells if c.type == "tetra10"])
+L2 = np.concatenate([d for c, d in zip(msh2.cells, msh2.cell_data["gmsh:physical"]) if c.type == "tetra10"])
+root2 = ET.parse(base2 + ".feb").getroot()
+X2 = np.array([[float(v) for v in n.text.split(",")] for n in root2.findall("./Mesh/Nodes/node")])
+check(len(T2) == len(T) and X2.shape == P2.shape and np.abs(X2 - P2).max() <= 1e-12 * max(1.0, np.abs(P2).max()),
+      "tet10: as many elements as tet4 (%d) and node coordinates = .msh points (%d nodes)" % (len(T2), len(P2)))
+EDGES = [(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)]
+blocks2 = root2.findall("./Mesh/Elements")
+check(all(b.get("type") == "tet10" for b in blocks2), "tet10: every Elements block has type tet10")
+conn2 = np.concatenate([np.array([[int(v) for v in e.text.split(",")] for e in b.findall("elem")]) for b in blocks2]) - 1
+ids2 = [int(e.get("id")) for b in blocks2 for e in b.findall("elem")]
+check(conn2.shape == (len(T2), 10) and ids2 == list(range(1, len(T2) + 1)), "tet10: 10 nodes per element, ids 1..%d" % len(T2))
+check(set(map(tuple, conn2.tolist())) == set(map(tuple, T2.tolist())),
+      "tet10: every element = a .msh tetra10 node for node (FEBio order = meshio's VTK order)")
+x = X2[conn2]
+err = max(np.abs(x[:, 4 + k] - 0.5 * (x[:, a] + x[:, b])).max() for k, (a, b) in enumerate(EDGES))
+check(err <= 1e-9 * max(1.0, np.abs(X2).max()), "tet10: nodes 5..10 at the midpoints of edges 1-2, 2-3, 3-1, 1-4, 2-4, 3-4 (%.3g)" % err)
+vol = np.einsum("ij,ij->i", x[:, 1] - x[:, 0], np.cross(x[:, 2] - x[:, 0], x[:, 3] - x[:, 0]))
+check(bool((vol > 0).all()), "tet10: every element positively oriented (%d not)" % int((vol <= 0).sum()))
+mid_of = {}
+for c in conn2:
+    for k, (a, b) in enumerate(EDGES):
+        mid_of.setdefault((min(c[a], c[b]), max(c[a], c[b])), set()).add(int(c[4 + k]))
+check(all(len(v) == 1 for v in mid_of.values()) and len(P2) == len(np.unique(conn2[:, :4])) + len(mid_of),
+      "tet10: one mid-edge node per unique edge, shared by all elements around it")
+faces2 = {}
+for t, tet in enumerate(T2):
+    for f in ((0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3)):
+        faces2.setdefault(tuple(sorted(tet[list(f)])), []).append(t)
+expected2 = {}
+for key, owners in faces2.items():
+    ls = sorted(int(L2[t]) for t in owners)
+    if len(owners) == 1:
+        expected2.setdefault((ls[0], "boundary"), set()).add(key)
+    elif ls[0] != ls[1]:
+        expected2.setdefault((ls[0], ls[1]), set()).add(key)
+name_to_label2 = {}
+for b in blocks2:
+    first = [int(v) - 1 for v in b.find("elem").text.split(",")]
+    idx = [i for i, t in enumerate(T2) if list(t) == first]
+    name_to_label2[b.get("name")] = int(L2[idx[0]]) if idx else None
+surfs2 = root2.findall("./Mesh/Surface")
+bad_faces, bad_sets, keys2 = 0, 0, set()
+nsets2 = {n.get("name"): set(int(v) - 1 for v in re.split(r"[,\s]+", n.text.strip()) if v) for n in root2.findall("./Mesh/NodeSet")}
+for sf in surfs2:
+    parts = sf.get("name").split("__")
+    key = (name_to_label2.get(parts[0]), "boundary" if parts[1] == "boundary" else name_to_label2.get(parts[1]))
+    keys2.add(key)
+    check(len(sf) > 0 and all(f.tag == "tri6" for f in sf), "tet10: surface %s has tri6 faces" % sf.get("name"))
+    tri = np.array([[int(v) for v in f.text.split(",")] for f in sf]) - 1
+    fs = set(tuple(sorted(t[:3])) for t in tri)
+    y = X2[tri]
+    e = max(np.abs(y[:, 3 + k] - 0.5 * (y[:, a] + y[:, b])).max() for k, (a, b) in enumerate([(0, 1), (1, 2), (2, 0)]))
+    bad_faces += int(fs != expected2.get(key, set()) or e > 1e-9 * max(1.0, np.abs(X2).max()))
+    bad_sets += int(nsets2.get("nodes__" + sf.get("name")) != set(tri.ravel().tolist()))
+check(keys2 == set(expected2) and bad_faces == 0,
+      "tet10: a tri6 surface per interface and boundary, corners = the mesh faces, nodes 4..6 at the edge midpoints (%d wrong)" % bad_faces)
+check(bad_sets == 0, "tet10: every surface's NodeSet holds its faces' 6 nodes (%d wrong)" % bad_sets)
+for name, lab in name_to_label2.items():
+    want = set(T2[L2 == lab].ravel().tolist())
+    check(nsets2.get("nodes__" + name) == want, "tet10: node set nodes__%s = the %d nodes (corners and mid-edge) of label %s" % (name, len(want), lab))
+
 check.finish()

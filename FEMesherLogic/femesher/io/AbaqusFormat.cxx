@@ -1,7 +1,9 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Abaqus / CalculiX input (.inp): model data only, C3D4 per material, surfaces, materials.
+// Abaqus / CalculiX input (.inp): model data only, C3D4 (or C3D10) per material, surfaces,
+// materials.
 #include <femesher/Version.h>
 #include <femesher/io/MeshFormats.h>
+#include <femesher/io/QuadraticTets.h>
 
 #include <algorithm>
 #include <cstdlib>
@@ -28,7 +30,7 @@ std::string inpReal(double x) {
   return buf;
 }
 
-/// Abaqus C3D4 face numbering (1-based): S1 = 1-2-3, S2 = 1-4-2, S3 = 2-4-3, S4 = 3-4-1.
+/// Abaqus C3D4 and C3D10 face numbering (1-based; the faces of a C3D10 are those of its corners): S1 = 1-2-3, S2 = 1-4-2, S3 = 2-4-3, S4 = 3-4-1.
 int abaqusFace(const std::array<int32_t, 4>& tet, const std::array<int32_t, 3>& tri) {
   static const int F[4][3] = {{0, 1, 2}, {0, 3, 1}, {1, 3, 2}, {2, 3, 0}};
   std::array<int32_t, 3> s = tri;
@@ -54,6 +56,9 @@ void writeIdLines(std::FILE* f, const std::vector<size_t>& ids) {
 Status writeInp(const TetMesh& m, const std::string& path, const ExportOptions& o) {
   const SolverDeckTables tables(m);
   const auto& [byLabel, tris, patches, elset] = tables;
+  const bool quadratic = o.elementOrder == 2;
+  const QuadraticTetMesh q = quadratic ? quadraticTets(m) : QuadraticTetMesh{};
+  const std::vector<Vec3>& points = quadratic ? q.points : m.points;
   return writeText(path, [&](std::FILE* f) {
     // CalculiX reads at most 132 characters per line.
     std::string heading = "FEMesher " FEMESHER_VERSION " multi-material tet mesh, LPS mm";
@@ -71,21 +76,37 @@ Status writeInp(const TetMesh& m, const std::string& path, const ExportOptions& 
                  "** NSET=BOUNDARY: nodes on the outer boundary. Element-based surfaces:\n"
                  "**   IF_<a>_<b> interface between labels a < b (faces of a's elements),\n"
                  "**   OUTER_<a> outer boundary of label a (negative labels written N<|a|>).\n");
+    if (quadratic)
+      std::fprintf(f, "** C3D10: nodes after %zu are mid-edge nodes at the straight edge midpoints.\n",
+                   q.cornerCount);
     std::fprintf(f, "*NODE, NSET=ALLNODES\n");
-    for (size_t i = 0; i < m.points.size(); ++i)
-      std::fprintf(f, "%zu, %s, %s, %s\n", i + 1, inpReal(m.points[i][0]).c_str(),
-                   inpReal(m.points[i][1]).c_str(), inpReal(m.points[i][2]).c_str());
+    for (size_t i = 0; i < points.size(); ++i)
+      std::fprintf(f, "%zu, %s, %s, %s\n", i + 1, inpReal(points[i][0]).c_str(),
+                   inpReal(points[i][1]).c_str(), inpReal(points[i][2]).c_str());
     // Elements grouped by material; element id = 1-based index in the mesh (as in the .vtu).
     for (const auto& [l, tets] : byLabel) {
-      std::fprintf(f, "*ELEMENT, TYPE=C3D4, ELSET=%s\n", elset.at(l).c_str());
-      for (size_t t : tets)
-        std::fprintf(f, "%zu, %d, %d, %d, %d\n", t + 1, m.tets[t][0] + 1, m.tets[t][1] + 1,
-                     m.tets[t][2] + 1, m.tets[t][3] + 1);
+      std::fprintf(f, "*ELEMENT, TYPE=%s, ELSET=%s\n", quadratic ? "C3D10" : "C3D4",
+                   elset.at(l).c_str());
+      for (size_t t : tets) {
+        if (!quadratic) {
+          std::fprintf(f, "%zu, %d, %d, %d, %d\n", t + 1, m.tets[t][0] + 1, m.tets[t][1] + 1,
+                       m.tets[t][2] + 1, m.tets[t][3] + 1);
+          continue;
+        }
+        // C3D10: corners, then the midpoints of edges 1-2, 2-3, 3-1, 1-4, 2-4, 3-4 (q's order).
+        std::fprintf(f, "%zu", t + 1);
+        for (int32_t v : q.tets[t]) std::fprintf(f, ", %d", v + 1);
+        std::fprintf(f, "\n");
+      }
     }
     // Outer boundary nodes.
     std::set<int32_t> boundary;
     for (const auto& t : tris)
-      if (t.labelB == kExteriorLabel) boundary.insert(t.v.begin(), t.v.end());
+      if (t.labelB == kExteriorLabel) {
+        boundary.insert(t.v.begin(), t.v.end());
+        if (quadratic)
+          for (int k = 0; k < 3; ++k) boundary.insert(q.midNode(t.v[size_t(k)], t.v[size_t((k + 1) % 3)]));
+      }
     std::vector<size_t> ids;
     for (int32_t v : boundary) ids.push_back(size_t(v) + 1);
     std::fprintf(f, "*NSET, NSET=BOUNDARY\n");

@@ -4,9 +4,13 @@
 // manual for format 4.0 (sections "Free Format Overview", "Control Section", "Material Section",
 // "Mesh Section", "MeshDomains Section") and what FEBio's 4.0 reader requires (material ids
 // 1..N in order with unique names, node and element ids increasing, Elements named, a
-// SolidDomain per Elements naming a material by name).
+// SolidDomain per Elements naming a material by name). With element_order 2: tet10 elements
+// (corners, then the midpoints of edges 1-2, 2-3, 3-1, 1-4, 2-4, 3-4, the order of FEBio's
+// FETet10 shape functions), tri6 surface faces (corners, then edges 1-2, 2-3, 3-1) and NodeSets
+// holding the mid-edge nodes.
 #include <femesher/Version.h>
 #include <femesher/io/MeshFormats.h>
+#include <femesher/io/QuadraticTets.h>
 
 #include <set>
 
@@ -44,6 +48,21 @@ Status writeFeb(const TetMesh& m, const std::string& path, const ExportOptions& 
   const auto& tris = tables.tris;
   const auto& patches = tables.patches;
   const auto names = febioNames(m);
+  const bool quadratic = o.elementOrder == 2;
+  const QuadraticTetMesh q = quadratic ? quadraticTets(m) : QuadraticTetMesh{};
+  const std::vector<Vec3>& points = quadratic ? q.points : m.points;
+  // The nodes of tet t and of interface triangle i (mid-edge nodes too with order 2).
+  auto insertTetNodes = [&](std::set<int32_t>& nodes, size_t t) {
+    if (quadratic) nodes.insert(q.tets[t].begin(), q.tets[t].end());
+    else nodes.insert(m.tets[t].begin(), m.tets[t].end());
+  };
+  auto triNodes = [&](size_t i) {
+    const auto& v = tris[i].v;
+    std::vector<int32_t> n(v.begin(), v.end());
+    if (quadratic)
+      for (int k = 0; k < 3; ++k) n.push_back(q.midNode(v[size_t(k)], v[size_t((k + 1) % 3)]));
+    return n;
+  };
   auto surfaceName = [&](const PatchKey& k) {
     return names.at(k.first) + "__" +
            (k.second == kExteriorLabel ? "boundary" : names.at(k.second));
@@ -86,29 +105,36 @@ Status writeFeb(const TetMesh& m, const std::string& path, const ExportOptions& 
       std::fprintf(f, "\t\t</material>\n");
     }
     std::fprintf(f, "\t</Material>\n\t<Mesh>\n\t\t<Nodes name=\"all_nodes\">\n");
-    for (size_t i = 0; i < m.points.size(); ++i)
-      std::fprintf(f, "\t\t\t<node id=\"%zu\">%.17g,%.17g,%.17g</node>\n", i + 1, m.points[i][0],
-                   m.points[i][1], m.points[i][2]);
+    for (size_t i = 0; i < points.size(); ++i)
+      std::fprintf(f, "\t\t\t<node id=\"%zu\">%.17g,%.17g,%.17g</node>\n", i + 1, points[i][0],
+                   points[i][1], points[i][2]);
     std::fprintf(f, "\t\t</Nodes>\n");
     // Element ids run on over the domains (FEBio looks elements up by id).
     size_t eid = 0;
     for (const auto& [l, tets] : byLabel) {
-      std::fprintf(f, "\t\t<Elements type=\"tet4\" name=\"%s\">\n", names.at(l).c_str());
-      for (size_t t : tets)
-        std::fprintf(f, "\t\t\t<elem id=\"%zu\">%d,%d,%d,%d</elem>\n", ++eid, m.tets[t][0] + 1,
-                     m.tets[t][1] + 1, m.tets[t][2] + 1, m.tets[t][3] + 1);
+      std::fprintf(f, "\t\t<Elements type=\"%s\" name=\"%s\">\n", quadratic ? "tet10" : "tet4",
+                   names.at(l).c_str());
+      for (size_t t : tets) {
+        std::fprintf(f, "\t\t\t<elem id=\"%zu\">", ++eid);
+        if (quadratic)
+          for (size_t k = 0; k < 10; ++k) std::fprintf(f, "%s%d", k ? "," : "", q.tets[t][k] + 1);
+        else
+          for (size_t k = 0; k < 4; ++k) std::fprintf(f, "%s%d", k ? "," : "", m.tets[t][k] + 1);
+        std::fprintf(f, "</elem>\n");
+      }
       std::fprintf(f, "\t\t</Elements>\n");
     }
     for (const auto& [l, tets] : byLabel) {
       std::set<int32_t> nodes;
-      for (size_t t : tets) nodes.insert(m.tets[t].begin(), m.tets[t].end());
+      for (size_t t : tets) insertTetNodes(nodes, t);
       std::fprintf(f, "\t\t<NodeSet name=\"nodes__%s\">\n", names.at(l).c_str());
       writeIdList(f, nodes);
       std::fprintf(f, "\t\t</NodeSet>\n");
     }
     for (const auto& [key, list] : patches) {
       std::set<int32_t> nodes;
-      for (size_t i : list) nodes.insert(tris[i].v.begin(), tris[i].v.end());
+      for (size_t i : list)
+        for (int32_t v : triNodes(i)) nodes.insert(v);
       std::fprintf(f, "\t\t<NodeSet name=\"nodes__%s\">\n", surfaceName(key).c_str());
       writeIdList(f, nodes);
       std::fprintf(f, "\t\t</NodeSet>\n");
@@ -117,9 +143,13 @@ Status writeFeb(const TetMesh& m, const std::string& path, const ExportOptions& 
     for (const auto& [key, list] : patches) {
       std::fprintf(f, "\t\t<Surface name=\"%s\">\n", surfaceName(key).c_str());
       size_t fid = 0;
-      for (size_t i : list)
-        std::fprintf(f, "\t\t\t<tri3 id=\"%zu\">%d,%d,%d</tri3>\n", ++fid, tris[i].v[0] + 1,
-                     tris[i].v[1] + 1, tris[i].v[2] + 1);
+      const char* type = quadratic ? "tri6" : "tri3";
+      for (size_t i : list) {
+        std::fprintf(f, "\t\t\t<%s id=\"%zu\">", type, ++fid);
+        const auto n = triNodes(i);
+        for (size_t k = 0; k < n.size(); ++k) std::fprintf(f, "%s%d", k ? "," : "", n[k] + 1);
+        std::fprintf(f, "</%s>\n", type);
+      }
       std::fprintf(f, "\t\t</Surface>\n");
     }
     std::fprintf(f, "\t</Mesh>\n\t<MeshDomains>\n");

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Gmsh MSH 4.1 ASCII (.msh): writer and reader.
 #include <femesher/io/MeshFormats.h>
+#include <femesher/io/QuadraticTets.h>
 
 #include <algorithm>
 #include <array>
@@ -51,7 +52,10 @@ int mshNodesPerElement(int type) {
 
 }  // namespace
 
-Status writeMsh(const TetMesh& m, const std::string& path, const ExportOptions&) {
+Status writeMsh(const TetMesh& m, const std::string& path, const ExportOptions& o) {
+  const bool quadratic = o.elementOrder == 2;
+  const QuadraticTetMesh q = quadratic ? quadraticTets(m) : QuadraticTetMesh{};
+  const std::vector<Vec3>& points = quadratic ? q.points : m.points;
   const auto byLabel = tetsByLabel(m);
   const auto labels = meshLabels(m);
   const auto tris = extractInterfaces(m);
@@ -110,26 +114,40 @@ Status writeMsh(const TetMesh& m, const std::string& path, const ExportOptions&)
     std::fprintf(f, "$EndEntities\n");
     // Nodes in one block classified on the first volume (a non-parametric mesh: Gmsh and meshio
     // only need every node defined once); node tag = 1-based index in the mesh.
-    const size_t np = m.points.size();
+    // With element_order 2 the mid-edge nodes follow the corners.
+    const size_t np = points.size();
     std::fprintf(f, "$Nodes\n1 %zu 1 %zu\n3 %d 0 %zu\n", np, np, volTag.at(labels.front()), np);
     for (size_t i = 0; i < np; ++i) std::fprintf(f, "%zu\n", i + 1);
     for (size_t i = 0; i < np; ++i)
-      std::fprintf(f, "%.17g %.17g %.17g\n", m.points[i][0], m.points[i][1], m.points[i][2]);
+      std::fprintf(f, "%.17g %.17g %.17g\n", points[i][0], points[i][1], points[i][2]);
     std::fprintf(f, "$EndNodes\n");
     const size_t ne = tris.size() + m.tets.size();
     std::fprintf(f, "$Elements\n%zu %zu 1 %zu\n", patches.size() + labels.size(), ne, ne);
     size_t id = 1;
     for (const auto& [key, list] : patches) {
-      std::fprintf(f, "2 %d 2 %zu\n", surfTag.at(key), list.size());
-      for (size_t i : list)
-        std::fprintf(f, "%zu %d %d %d\n", id++, tris[i].v[0] + 1, tris[i].v[1] + 1, tris[i].v[2] + 1);
+      // Type 2 (3-node triangle) or 9 (6-node: corners, then edges 0-1, 1-2, 2-0).
+      std::fprintf(f, "2 %d %d %zu\n", surfTag.at(key), quadratic ? 9 : 2, list.size());
+      for (size_t i : list) {
+        const auto& v = tris[i].v;
+        std::fprintf(f, "%zu %d %d %d", id++, v[0] + 1, v[1] + 1, v[2] + 1);
+        if (quadratic)
+          std::fprintf(f, " %d %d %d", q.midNode(v[0], v[1]) + 1, q.midNode(v[1], v[2]) + 1,
+                       q.midNode(v[2], v[0]) + 1);
+        std::fprintf(f, "\n");
+      }
     }
     for (int32_t l : labels) {
       const auto& list = byLabel.at(l);
-      std::fprintf(f, "3 %d 4 %zu\n", volTag.at(l), list.size());
-      for (size_t t : list)
-        std::fprintf(f, "%zu %d %d %d %d\n", id++, m.tets[t][0] + 1, m.tets[t][1] + 1,
-                     m.tets[t][2] + 1, m.tets[t][3] + 1);
+      // Type 4 (4-node tet) or 11 (10-node tet in Gmsh's node order, kGmshTet10Order).
+      std::fprintf(f, "3 %d %d %zu\n", volTag.at(l), quadratic ? 11 : 4, list.size());
+      for (size_t t : list) {
+        std::fprintf(f, "%zu", id++);
+        if (quadratic)
+          for (int k : kGmshTet10Order) std::fprintf(f, " %d", q.tets[t][size_t(k)] + 1);
+        else
+          for (int32_t v : m.tets[t]) std::fprintf(f, " %d", v + 1);
+        std::fprintf(f, "\n");
+      }
     }
     std::fprintf(f, "$EndElements\n");
   });

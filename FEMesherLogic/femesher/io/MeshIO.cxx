@@ -3,6 +3,7 @@
 #include <femesher/io/MeshFormats.h>
 #include <femesher/io/MeshIO.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -35,6 +36,7 @@ ExportOptions exportOptionsFrom(const MeshingParameters& params) {
   o.defaultMaterialGiven = params.defaultMaterial.youngsModulus != builtIn.youngsModulus ||
                            params.defaultMaterial.poissonRatio != builtIn.poissonRatio ||
                            params.defaultMaterial.density != builtIn.density;
+  o.elementOrder = params.elementOrder;
   return o;
 }
 
@@ -67,22 +69,39 @@ std::vector<std::string> supportedMeshExtensions() {
   return {".vtu", ".vtk", ".inp", ".msh", ".mesh", ".feb", ".stl"};
 }
 
+Status checkExportable(const std::string& path, const ExportOptions& options) {
+  const std::string ext = fileExtension(path);
+  const auto exts = supportedMeshExtensions();
+  std::string list;
+  for (const auto& e : exts) list += (list.empty() ? "" : " ") + e;
+  if (std::find(exts.begin(), exts.end(), ext) == exts.end())
+    return {ErrorCode::InvalidArgument,
+            "Cannot write '" + path + "': " +
+                (ext.empty() ? std::string("the file name has no extension") : "unknown extension '" + ext + "'") +
+                ". Supported mesh formats: " + list + "."};
+  if (options.elementOrder != 1 && options.elementOrder != 2)
+    return {ErrorCode::InvalidArgument,
+            "Cannot write '" + path + "': element_order " + std::to_string(options.elementOrder) +
+                " is not supported; use 1 (4-node tets) or 2 (10-node tets)."};
+  if (options.elementOrder == 2 && (ext == ".mesh" || ext == ".stl"))
+    return {ErrorCode::InvalidArgument,
+            "Cannot write '" + path + "': " + (ext == ".mesh" ? "Medit .mesh" : "STL") +
+                " cannot hold 10-node tetrahedra (element_order=2). Write .inp, .msh, .vtu, .vtk or "
+                ".feb for second order, or set element_order=1."};
+  return Status::ok();
+}
+
 Status writeMesh(const TetMesh& mesh, const std::string& path, const ExportOptions& options) {
   const std::string ext = fileExtension(path);
+  if (Status s = checkExportable(path, options); !s) return s;
   using Writer = Status (*)(const TetMesh&, const std::string&, const ExportOptions&);
   using namespace meshio;
   static const std::map<std::string, Writer> writers = {
       {".vtu", writeVtu}, {".vtk", writeLegacyVtk}, {".inp", writeInp}, {".msh", writeMsh},
       {".mesh", writeMedit}, {".feb", writeFeb}, {".stl", writeStl}};
   const auto it = writers.find(ext);
-  if (it == writers.end()) {
-    std::string list;
-    for (const auto& e : supportedMeshExtensions()) list += (list.empty() ? "" : " ") + e;
-    return {ErrorCode::InvalidArgument,
-            "Cannot write '" + path + "': " +
-                (ext.empty() ? std::string("the file name has no extension") : "unknown extension '" + ext + "'") +
-                ". Supported mesh formats: " + list + "."};
-  }
+  if (it == writers.end())
+    return {ErrorCode::Internal, "Cannot write '" + path + "': no writer for '" + ext + "'."};
   if (Status s = checkMesh(mesh, path); !s) return s;
   try {
     return it->second(mesh, path, options);

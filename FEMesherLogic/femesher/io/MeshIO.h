@@ -6,7 +6,7 @@
 ///          only (meshio reads it): `MaterialIds`, `MaterialNames` (UTF-8 text as UInt8),
 ///          `MaterialColors`, `FEMesherVersion`, `Provenance` (VtkConversion.h). No `SPACE` tag:
 ///          Slicer takes a model file without one as LPS.
-///  - .inp  Abaqus/CalculiX: C3D4, an ELSET + *SOLID SECTION + named *MATERIAL (*ELASTIC,
+///  - .inp  Abaqus/CalculiX: C3D4 (C3D10 with element_order 2), an ELSET + *SOLID SECTION + named *MATERIAL (*ELASTIC,
 ///          *DENSITY) per material, NSET `BOUNDARY` (outer boundary nodes), an element-based
 ///          *SURFACE per material interface and per material's outer boundary.
 ///  - .msh  Gmsh MSH 4.1 ASCII: a named physical volume per material, a named physical surface
@@ -21,6 +21,13 @@
 ///  - .vtk  legacy VTK (binary, Slicer's "SPACE=LPS" header, which Slicer reads): cell array
 ///          `labels`, no field data.
 /// All writers are atomic (temporary file + rename). Coordinates are written in LPS mm.
+/// With `ExportOptions::elementOrder` = 2 the .inp, .msh, .vtu, .vtk and .feb writers write
+/// 10-node tets (QuadraticTets.h: one straight-edge midpoint node per unique edge, node order of
+/// each format: C3D10, Gmsh type 11, VTK_QUADRATIC_TETRA, FEBio tet10), the .msh its interface
+/// triangles as 6-node triangles (type 9), the .feb its surfaces as tri6 and its NodeSets with
+/// the mid-edge nodes; the .inp NSET BOUNDARY holds the boundary's mid-edge nodes too (its
+/// element-face surfaces are the same for C3D10). .mesh and .stl cannot hold them
+/// (`checkExportable`).
 
 #include <femesher/Parameters.h>
 #include <femesher/Status.h>
@@ -41,6 +48,8 @@ struct ExportOptions {
   bool defaultMaterialGiven = false;
   /// Extra provenance written where the format allows (VTU field data, comments).
   std::string provenance;
+  /// 1: 4-node tets; 2: 10-node tets (parameter `element_order`; see the file comment).
+  int elementOrder = 1;
 };
 
 /// Export options from the meshing parameters (material properties).
@@ -56,6 +65,11 @@ std::string defaultPropertiesWarning(const TetMesh& mesh, const std::string& pat
 
 /// Extensions `writeMesh` accepts, e.g. {".vtu", ".inp", ".msh", ".mesh", ".feb", ".stl"}.
 std::vector<std::string> supportedMeshExtensions();
+
+/// Whether `path`'s format can be written with `options` before any work is done: InvalidArgument
+/// for an unknown extension, for an element order other than 1 or 2, and for element order 2 in a
+/// format that has no 10-node tets (.mesh, .stl). `writeMesh` checks it too.
+Status checkExportable(const std::string& path, const ExportOptions& options);
 
 /// Write `mesh` to `path` (format from the extension). InvalidArgument for an unknown extension,
 /// WriteFailed for I/O errors. Never leaves a partial file.

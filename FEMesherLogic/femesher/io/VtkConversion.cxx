@@ -3,6 +3,7 @@
 #include <femesher/Version.h>
 #include <femesher/io/LabelValidation.h>
 #include <femesher/io/MeshFormats.h>
+#include <femesher/io/QuadraticTets.h>
 #include <femesher/io/VtkConversion.h>
 #include <vtkCellData.h>
 #include <vtkDoubleArray.h>
@@ -129,16 +130,26 @@ void setGeometry(const vtkMatrix4x4& ijkToWorld, const int extent[6], VtkFrame f
 
 void meshToVtkGrid(const TetMesh& m, vtkUnstructuredGrid* ug, const VtkGridOptions& o) {
   ug->Initialize();
+  const bool quadratic = o.elementOrder == 2;
+  const QuadraticTetMesh q = quadratic ? quadraticTets(m) : QuadraticTetMesh{};
+  const std::vector<Vec3>& points = quadratic ? q.points : m.points;
   vtkNew<vtkPoints> pts;
   pts->SetDataTypeToDouble();
-  pts->SetNumberOfPoints(vtkIdType(m.points.size()));
-  for (size_t i = 0; i < m.points.size(); ++i)
-    pts->SetPoint(vtkIdType(i), toFrame(m.points[i], o.frame).data());
+  pts->SetNumberOfPoints(vtkIdType(points.size()));
+  for (size_t i = 0; i < points.size(); ++i)
+    pts->SetPoint(vtkIdType(i), toFrame(points[i], o.frame).data());
   ug->SetPoints(pts);
   ug->Allocate(vtkIdType(m.tets.size()));
-  for (const auto& t : m.tets) {
-    const vtkIdType ids[4] = {t[0], t[1], t[2], t[3]};
-    ug->InsertNextCell(VTK_TETRA, 4, ids);
+  for (size_t t = 0; t < m.tets.size(); ++t) {
+    if (quadratic) {
+      vtkIdType ids[10];
+      for (size_t k = 0; k < 10; ++k) ids[k] = q.tets[t][k];
+      ug->InsertNextCell(VTK_QUADRATIC_TETRA, 10, ids);
+    } else {
+      const auto& v = m.tets[t];
+      const vtkIdType ids[4] = {v[0], v[1], v[2], v[3]};
+      ug->InsertNextCell(VTK_TETRA, 4, ids);
+    }
   }
   vtkNew<vtkIntArray> labels;
   labels->SetName("labels");

@@ -40,7 +40,7 @@ class VtkMessages {
 
 Status writeVtu(const TetMesh& m, const std::string& path, const ExportOptions& o) {
   vtkNew<vtkUnstructuredGrid> ug;
-  meshToVtkGrid(m, ug, {VtkFrame::LPS, /*fieldData=*/true, o.provenance});
+  meshToVtkGrid(m, ug, {VtkFrame::LPS, /*fieldData=*/true, o.provenance, o.elementOrder});
   return writeAtomically(path, [&](const std::string& tmp) {
     vtkNew<vtkXMLUnstructuredGridWriter> w;
     VtkMessages messages(w);
@@ -55,9 +55,9 @@ Status writeVtu(const TetMesh& m, const std::string& path, const ExportOptions& 
 
 /// Legacy VTK 4.2 with Slicer's header convention ("3D Slicer output. SPACE=LPS"), which Slicer
 /// reads to place the mesh; read by ParaView and meshio too.
-Status writeLegacyVtk(const TetMesh& m, const std::string& path, const ExportOptions&) {
+Status writeLegacyVtk(const TetMesh& m, const std::string& path, const ExportOptions& o) {
   vtkNew<vtkUnstructuredGrid> ug;
-  meshToVtkGrid(m, ug);
+  meshToVtkGrid(m, ug, {VtkFrame::LPS, /*fieldData=*/false, "", o.elementOrder});
   return writeAtomically(path, [&](const std::string& tmp) {
     vtkNew<vtkUnstructuredGridWriter> w;
     VtkMessages messages(w);

@@ -1,0 +1,196 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// 10-node tets (io/QuadraticTets, element_order 2): one shared mid-edge node per unique edge, at
+// the edge midpoint, in C3D10/VTK order, every element with a positive Jacobian at its ten nodes;
+// formats without 10-node tets refuse element order 2 without writing a file.
+#include <femesher/io/MeshIO.h>
+#include <femesher/io/QuadraticTets.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <set>
+#include <sstream>
+#include <string>
+
+namespace fs = std::filesystem;
+using namespace femesher;
+
+namespace {
+
+/// n^3 cubes split into 6 tets each (Kuhn, conformal), interior vertices jittered by up to 15 %
+/// of the edge (all tets stay positive), two materials split at x = n/2.
+TetMesh jitteredTwoMaterialMesh(int n) {
+  TetMesh m;
+  auto vid = [n](int i, int j, int k) { return int32_t(i + (n + 1) * (j + (n + 1) * k)); };
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> jitter(-0.15, 0.15);
+  for (int k = 0; k <= n; ++k)
+    for (int j = 0; j <= n; ++j)
+      for (int i = 0; i <= n; ++i) {
+        const bool inner = i > 0 && j > 0 && k > 0 && i < n && j < n && k < n;
+        Vec3 p{double(i), double(j), double(k)};
+        if (inner)
+          for (double& c : p) c += jitter(rng);
+        m.points.push_back(p);
+      }
+  static const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i)
+        for (const auto& p : perms) {
+          int c[3] = {i, j, k};
+          std::array<int32_t, 4> t;
+          t[0] = vid(c[0], c[1], c[2]);
+          for (int s = 0; s < 3; ++s) {
+            ++c[p[s]];
+            t[size_t(s) + 1] = vid(c[0], c[1], c[2]);
+          }
+          m.tets.push_back(t);
+          if (m.tetVolume(m.tets.size() - 1) < 0) std::swap(m.tets.back()[2], m.tets.back()[3]);
+          m.tetLabels.push_back(2 * i < n ? 1 : 2);
+        }
+  m.materials = {Material{1, "one", {1, 0, 0}}, Material{2, "two", {0, 1, 0}}};
+  return m;
+}
+
+/// Determinant of the Jacobian of the 10-node isoparametric map (C3D10 / VTK node order) at
+/// natural coordinates (r, s, t), with u = 1 - r - s - t.
+double tet10Jacobian(const std::array<Vec3, 10>& x, double r, double s, double t) {
+  const double u = 1 - r - s - t;
+  // dN/dr, dN/ds, dN/dt of N0 = u(2u-1), N1 = r(2r-1), N2 = s(2s-1), N3 = t(2t-1),
+  // N4 = 4ru, N5 = 4rs, N6 = 4su, N7 = 4tu, N8 = 4rt, N9 = 4st.
+  const double dr[10] = {1 - 4 * u, 4 * r - 1, 0, 0, 4 * (u - r), 4 * s, -4 * s, -4 * t, 4 * t, 0};
+  const double ds[10] = {1 - 4 * u, 0, 4 * s - 1, 0, -4 * r, 4 * r, 4 * (u - s), -4 * t, 0, 4 * t};
+  const double dt[10] = {1 - 4 * u, 0, 0, 4 * t - 1, -4 * r, 0, -4 * s, 4 * (u - t), 4 * r, 4 * s};
+  double J[3][3] = {};
+  for (int a = 0; a < 10; ++a)
+    for (int c = 0; c < 3; ++c) {
+      J[c][0] += dr[a] * x[size_t(a)][size_t(c)];
+      J[c][1] += ds[a] * x[size_t(a)][size_t(c)];
+      J[c][2] += dt[a] * x[size_t(a)][size_t(c)];
+    }
+  return J[0][0] * (J[1][1] * J[2][2] - J[1][2] * J[2][1]) -
+         J[0][1] * (J[1][0] * J[2][2] - J[1][2] * J[2][0]) +
+         J[0][2] * (J[1][0] * J[2][1] - J[1][1] * J[2][0]);
+}
+
+/// Natural coordinates (r, s, t) of the ten nodes.
+const double kNodeRst[10][3] = {{0, 0, 0},     {1, 0, 0},     {0, 1, 0},   {0, 0, 1},
+                                {0.5, 0, 0},   {0.5, 0.5, 0}, {0, 0.5, 0}, {0, 0, 0.5},
+                                {0.5, 0, 0.5}, {0, 0.5, 0.5}};
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+}  // namespace
+
+TEST(QuadraticTets, OneNodePerEdgeAtMidpointsPositiveJacobians) {
+  const TetMesh m = jitteredTwoMaterialMesh(4);
+  const QuadraticTetMesh q = quadraticTets(m);
+  ASSERT_EQ(q.tets.size(), m.tets.size());
+  ASSERT_EQ(q.cornerCount, m.points.size());
+  std::set<std::pair<int32_t, int32_t>> edges;
+  for (const auto& t : m.tets)
+    for (const auto& e : kTet10Edges) edges.insert(std::minmax(t[size_t(e[0])], t[size_t(e[1])]));
+  // One node per unique edge, shared by every tet around it, none for anything else.
+  EXPECT_EQ(q.points.size(), m.points.size() + edges.size());
+  EXPECT_EQ(q.edgeNodes.size(), edges.size());
+  std::map<std::pair<int32_t, int32_t>, int32_t> nodeOfEdge;
+  std::set<int32_t> usedMid;
+  for (size_t ti = 0; ti < m.tets.size(); ++ti) {
+    const auto& t = m.tets[ti];
+    const auto& e10 = q.tets[ti];
+    for (int k = 0; k < 4; ++k) EXPECT_EQ(e10[size_t(k)], t[size_t(k)]);
+    for (size_t k = 0; k < 6; ++k) {
+      const int32_t a = t[size_t(kTet10Edges[k][0])], b = t[size_t(kTet10Edges[k][1])];
+      const int32_t mid = e10[4 + k];
+      ASSERT_GE(size_t(mid), q.cornerCount);
+      ASSERT_LT(size_t(mid), q.points.size());
+      const auto key = std::minmax(a, b);
+      const auto [it, added] = nodeOfEdge.emplace(key, mid);
+      EXPECT_EQ(it->second, mid) << "edge " << a << "-" << b << " has two mid-edge nodes";
+      EXPECT_EQ(q.midNode(a, b), mid);
+      EXPECT_EQ(q.midNode(b, a), mid);
+      usedMid.insert(mid);
+      for (size_t c = 0; c < 3; ++c)
+        EXPECT_DOUBLE_EQ(q.points[size_t(mid)][c],
+                         0.5 * (m.points[size_t(a)][c] + m.points[size_t(b)][c]));
+    }
+    // Positively oriented and a positive Jacobian at every one of the ten nodes.
+    EXPECT_GT(m.tetVolume(ti), 0);
+    std::array<Vec3, 10> x;
+    for (size_t k = 0; k < 10; ++k) x[k] = q.points[size_t(e10[k])];
+    for (const auto& rst : kNodeRst)
+      EXPECT_GT(tet10Jacobian(x, rst[0], rst[1], rst[2]), 0) << "tet " << ti;
+  }
+  EXPECT_EQ(usedMid.size(), edges.size());
+  // Two vertices that share no tet have no mid-edge node.
+  EXPECT_THROW(q.midNode(0, int32_t(m.points.size()) - 1), Error);
+}
+
+TEST(QuadraticTets, JacobianCheckSeesSwappedMidNodes) {
+  // The check above can fail: Gmsh's order (edges 2-3 and 1-3 swapped) read as C3D10 order
+  // puts mid-edge nodes on the wrong edges and folds the element.
+  const TetMesh m = jitteredTwoMaterialMesh(1);
+  const QuadraticTetMesh q = quadraticTets(m);
+  std::array<Vec3, 10> x;
+  for (size_t k = 0; k < 10; ++k) x[k] = q.points[size_t(q.tets[0][size_t(kGmshTet10Order[k])])];
+  bool negative = false;
+  for (const auto& rst : kNodeRst) negative |= tet10Jacobian(x, rst[0], rst[1], rst[2]) <= 0;
+  EXPECT_TRUE(negative);
+}
+
+TEST(QuadraticTets, FormatsWithoutTet10RefuseOrderTwo) {
+  const TetMesh m = jitteredTwoMaterialMesh(2);
+  const fs::path dir = fs::temp_directory_path() / "femesher_test_quadratic";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ExportOptions o;
+  o.elementOrder = 2;
+  for (const char* name : {"m.mesh", "m.stl"}) {
+    const Status s = writeMesh(m, (dir / name).string(), o);
+    EXPECT_EQ(s.code(), ErrorCode::InvalidArgument) << name;
+    EXPECT_NE(s.message().find("10-node"), std::string::npos) << s.message();
+    EXPECT_NE(s.message().find(name), std::string::npos) << s.message();
+    EXPECT_FALSE(fs::exists(dir / name));
+  }
+  o.elementOrder = 3;
+  EXPECT_EQ(writeMesh(m, (dir / "m.inp").string(), o).code(), ErrorCode::InvalidArgument);
+  EXPECT_FALSE(fs::exists(dir / "m.inp"));
+  EXPECT_TRUE(fs::is_empty(dir));
+  fs::remove_all(dir);
+}
+
+TEST(QuadraticTets, WritersUseTenNodeElements) {
+  const TetMesh m = jitteredTwoMaterialMesh(2);
+  const QuadraticTetMesh q = quadraticTets(m);
+  const fs::path dir = fs::temp_directory_path() / "femesher_test_quadratic_write";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ExportOptions o;
+  o.elementOrder = 2;
+  for (const char* name : {"m.inp", "m.msh", "m.feb", "m.vtu", "m.vtk"})
+    ASSERT_TRUE(writeMesh(m, (dir / name).string(), o)) << name;
+  const std::string inp = slurp(dir / "m.inp");
+  EXPECT_NE(inp.find("TYPE=C3D10"), std::string::npos);
+  EXPECT_EQ(inp.find("TYPE=C3D4"), std::string::npos);
+  // The last node is the last mid-edge node.
+  EXPECT_NE(inp.find("\n" + std::to_string(q.points.size()) + ", "), std::string::npos);
+  const std::string msh = slurp(dir / "m.msh");
+  EXPECT_NE(msh.find(" 11 " + std::to_string(m.tets.size() / 2) + "\n"), std::string::npos);
+  const std::string feb = slurp(dir / "m.feb");
+  EXPECT_NE(feb.find("type=\"tet10\""), std::string::npos);
+  EXPECT_NE(feb.find("<tri6 id=\"1\">"), std::string::npos);
+  EXPECT_EQ(feb.find("tet4"), std::string::npos);
+  EXPECT_EQ(feb.find("<tri3"), std::string::npos);
+  fs::remove_all(dir);
+}
