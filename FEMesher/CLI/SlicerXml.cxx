@@ -27,13 +27,6 @@ std::string xmlEscape(const std::string& s) {
   return o;
 }
 
-/// Parameter key -> SEM name / long flag: letters, digits and underscores only.
-std::string semName(const std::string& key) {
-  std::string n = key;
-  for (auto& c : n)
-    if (c == '.' || c == '-') c = '_';
-  return n;
-}
 
 /// Digits after the '.', as Slicer counts them to choose a spin box's decimals.
 int decimalsOf(const std::string& text) {
@@ -120,6 +113,13 @@ std::string plainDecimal(double value) {
   if (r.ec != std::errc()) throw std::logic_error("plainDecimal: cannot format a number");
   std::string s(buf, r.ptr);
   return s == "-0" ? "0" : s;
+}
+
+std::string semName(const std::string& key) {
+  std::string n = key;
+  for (auto& c : n)
+    if (c == '.' || c == '-') c = '_';
+  return n;
 }
 
 std::string slicerXml() {

@@ -27,6 +27,11 @@
 
 namespace femesher::cli {
 
+/// Parameter key -> SEM `<name>` and long flag: '.' and '-' become '_' (letters, digits and
+/// underscores only): "default.E" -> "default_E". femesher accepts these flags beside the
+/// hyphenated ones.
+std::string semName(const std::string& key);
+
 /// The whole `<executable>` document.
 std::string slicerXml();
 

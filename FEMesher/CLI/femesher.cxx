@@ -94,15 +94,6 @@ std::string flagName(const std::string& key) {
   return f;
 }
 
-/// The long flag of a parameter key with underscores ("default.E" -> "default_E"): the spelling
-/// of `femesher --xml`, which Slicer passes (SEM flags allow only letters, digits and '_').
-std::string underscoreName(const std::string& key) {
-  std::string f = key;
-  for (auto& c : f)
-    if (c == '.' || c == '-') c = '_';
-  return f;
-}
-
 /// `s` as the inside of a JSON string (names come from files and users: quotes, backslashes).
 std::string jsonText(const std::string& s) {
   std::string o;
@@ -120,9 +111,9 @@ std::vector<std::string> booleanFlagSpellings() {
   for (const auto& d : parameterDescriptors()) {
     if (d.type != "bool") continue;
     flags.push_back("--" + flagName(d.key));
-    flags.push_back("--" + underscoreName(d.key));
+    flags.push_back("--" + cli::semName(d.key));
     flags.push_back("--no-" + flagName(d.key));
-    flags.push_back("--no_" + underscoreName(d.key));
+    flags.push_back("--no_" + cli::semName(d.key));
   }
   return flags;
 }
@@ -546,7 +537,7 @@ void addMeshOptions(CLI::App* cmd, MeshOptions& o, bool positionalOutput) {
     if (key == "threads" || key == "seed") continue;  // dedicated options above
     // --target-edge-length and --target_edge_length (the spelling of `--xml`, which Slicer uses).
     std::string names = "--" + flagName(d.key);
-    if (underscoreName(d.key) != flagName(d.key)) names += ",--" + underscoreName(d.key);
+    if (cli::semName(d.key) != flagName(d.key)) names += ",--" + cli::semName(d.key);
     cmd->add_option_function<std::string>(
            names, [&o, key](const std::string& v) { o.direct[key] = v; },
            d.help + (d.unit.empty() ? "" : " [" + d.unit + "]") +
@@ -554,7 +545,7 @@ void addMeshOptions(CLI::App* cmd, MeshOptions& o, bool positionalOutput) {
         ->group("Parameters");
     if (d.type != "bool") continue;
     cmd->add_option_function<std::string>(
-           "--no-" + flagName(d.key) + ",--no_" + underscoreName(d.key),
+           "--no-" + flagName(d.key) + ",--no_" + cli::semName(d.key),
            [&o, key](const std::string& v) { o.negated[key] = v; },
            "Turn " + d.key + " off (a bare flag; --no-" + flagName(d.key) + " false turns it on).")
         ->group("Parameters");

@@ -3,6 +3,7 @@
 the femesher CLI and return the paths of every export and of the run report."""
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -55,3 +56,29 @@ def mesh_volume(name, source=None, extra=(), exts=EXTS):
         raise SystemExit("femesher mesh failed (%d): %s" % (r.returncode, r.stderr))
     report = json.load(open(base + ".json"))
     return base, report, source
+
+
+def node_lines(ids):
+    """Node ids as INP data lines, 16 to a line."""
+    return "".join(", ".join(str(n) for n in ids[i:i + 16]) + "\n" for i in range(0, len(ids), 16))
+
+
+def run_ccx(ccx, work, job, check, timeout):
+    """Runs CalculiX on `work`/`job`.inp, checks it exits 0 without *ERROR and wrote `job`.dat,
+    and returns the .dat's displacement and total-force blocks (lists of rows of floats)."""
+    r = subprocess.run([ccx, "-i", job], cwd=work, capture_output=True, text=True, timeout=timeout,
+                       stdin=subprocess.DEVNULL, env=dict(os.environ, OMP_NUM_THREADS="2"))
+    out = r.stdout + r.stderr
+    check(r.returncode == 0, "%s: ccx exits 0" % job)
+    err = out.find("*ERROR")
+    check(err < 0, "%s: ccx reports no *ERROR" % job + ("" if err < 0 else ": " + out[err:err + 300]))
+    dat = os.path.join(work, job + ".dat")
+    check(os.path.exists(dat), "%s: ccx wrote %s.dat" % (job, job))
+    text = open(dat).read() if os.path.exists(dat) else ""
+    # Blocks of the .dat by their headers.
+    parts = re.split(r"\n\s*(displacements|total force)[^\n]*\n", text)
+    disp, totals = [], []
+    for kind, body in zip(parts[1::2], parts[2::2]):
+        rows = [[float(x) for x in l.split()] for l in body.strip().splitlines() if l.strip()]
+        (disp if kind == "displacements" else totals).append(rows)
+    return disp, totals

@@ -13,11 +13,10 @@ import math
 import os
 import re
 import shutil
-import subprocess
 
 import numpy as np
 
-from exports_common import IN_CI, Checker, mesh_volume
+from exports_common import IN_CI, Checker, mesh_volume, node_lines, run_ccx
 
 check = Checker()
 ccx = shutil.which("ccx")
@@ -50,10 +49,6 @@ def parse(inp):
     return nodes, elements, boundary, types
 
 
-def node_lines(ids):
-    return "".join(", ".join(str(n) for n in ids[i:i + 16]) + "\n" for i in range(0, len(ids), 16))
-
-
 def solve(inp_path, job, nodes, boundary, n_vertices):
     """Bottom boundary nodes fixed, 1 kN down on the top boundary nodes; returns the uz of the top
     corner nodes (ids <= n_vertices) and the reaction total."""
@@ -71,21 +66,9 @@ def solve(inp_path, job, nodes, boundary, n_vertices):
             "*NODE PRINT, NSET=CORNERS\nU\n*NODE PRINT, NSET=FIXED, TOTALS=ONLY\nRF\n*NODE FILE\nU\n*END STEP\n")
     with open(os.path.join(work, job + ".inp"), "w") as f:
         f.write(text)
-    r = subprocess.run([ccx, "-i", job], cwd=work, capture_output=True, text=True, timeout=3000,
-                       stdin=subprocess.DEVNULL, env=dict(os.environ, OMP_NUM_THREADS="2"))
-    out = r.stdout + r.stderr
-    check(r.returncode == 0, "%s: ccx exits 0" % job)
-    err = out.find("*ERROR")
-    check(err < 0, "%s: ccx reports no *ERROR" % job + ("" if err < 0 else ": " + out[err:err + 300]))
+    disp, totals = run_ccx(ccx, work, job, check, timeout=3000)
     frd = os.path.join(work, job + ".frd")
     check(os.path.exists(frd) and "DISP" in open(frd).read(), "%s: ccx wrote displacements to %s.frd" % (job, job))
-    dat = os.path.join(work, job + ".dat")
-    body = open(dat).read() if os.path.exists(dat) else ""
-    parts = re.split(r"\n\s*(displacements|total force)[^\n]*\n", body)
-    disp, totals = [], []
-    for kind, blk in zip(parts[1::2], parts[2::2]):
-        rows = [[float(x) for x in l.split()] for l in blk.strip().splitlines() if l.strip()]
-        (disp if kind == "displacements" else totals).append(rows)
     uz = [row[3] for row in disp[0]] if disp else []
     check(len(uz) == len(top_corners) and len(uz) >= 3,
           "%s: displacements of the %d top corner nodes printed (%d)" % (job, len(top_corners), len(uz)))

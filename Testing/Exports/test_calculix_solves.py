@@ -14,11 +14,10 @@ import math
 import os
 import re
 import shutil
-import subprocess
 
 import numpy as np
 
-from exports_common import IN_CI, Checker, mesh_volume
+from exports_common import IN_CI, Checker, mesh_volume, node_lines, run_ccx
 
 check = Checker()
 ccx = shutil.which("ccx")
@@ -86,29 +85,10 @@ work = os.path.dirname(base)
 pressure = 0.01  # MPa
 
 
-def node_lines(ids):
-    return "".join(", ".join(str(n) for n in ids[i:i + 16]) + "\n" for i in range(0, len(ids), 16))
-
-
 def solve(job, text):
     with open(os.path.join(work, job + ".inp"), "w") as f:
         f.write("*INCLUDE, INPUT=%s\n" % os.path.basename(inp_path) + text)
-    r = subprocess.run([ccx, "-i", job], cwd=work, capture_output=True, text=True, timeout=1500,
-                       stdin=subprocess.DEVNULL, env=dict(os.environ, OMP_NUM_THREADS="2"))
-    out = r.stdout + r.stderr
-    check(r.returncode == 0, "%s: ccx exits 0" % job)
-    err = out.find("*ERROR")
-    check(err < 0, "%s: ccx reports no *ERROR" % job + ("" if err < 0 else ": " + out[err:err + 300]))
-    dat = os.path.join(work, job + ".dat")
-    check(os.path.exists(dat), "%s: ccx wrote %s.dat" % (job, job))
-    text = open(dat).read() if os.path.exists(dat) else ""
-    # Blocks of the .dat by their headers.
-    parts = re.split(r"\n\s*(displacements|total force)[^\n]*\n", text)
-    disp, totals = [], []
-    for kind, body in zip(parts[1::2], parts[2::2]):
-        rows = [[float(x) for x in l.split()] for l in body.strip().splitlines() if l.strip()]
-        (disp if kind == "displacements" else totals).append(rows)
-    return disp, totals
+    return run_ccx(ccx, work, job, check, timeout=1500)
 
 
 # 1. Bottom fixed, top pushed down.

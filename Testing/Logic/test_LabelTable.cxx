@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Colour tables naming labels (io/LabelTable): 3D Slicer's .ctbl and .csv, ITK-SNAP's label
 // description, the errors of malformed files, and naming the real knee's materials.
+#include "MeshInvariants.h"
+
 #include <femesher/io/LabelMapIO.h>
 #include <femesher/io/LabelTable.h>
 #include <gtest/gtest.h>
@@ -98,9 +100,9 @@ TEST(LabelTable, MalformedTablesAreClearErrors) {
 }
 
 TEST(LabelTable, NamesTheRealKneesMaterials) {
-  const std::string knee = std::string(FEMESHER_DATA_DIR) + "/9135902_00m_WB01.nii.gz";
+  const std::string knee = femesher::testing::dataFile("9135902_00m_WB01.nii.gz");
   if (!fs::exists(knee)) {
-    if (std::getenv("CI") && std::string(std::getenv("CI")) == "true") FAIL() << "missing " << knee;
+    if (femesher::testing::inCI()) FAIL() << "missing " << knee;
     GTEST_SKIP() << "missing " << knee;
   }
   auto v = readLabelMap(knee);

@@ -5,6 +5,8 @@
 #include <femesher/Version.h>
 #include <femesher/io/MeshIO.h>
 
+#include "TestShapes.h"
+
 #include <gtest/gtest.h>
 #include <vtkCellData.h>
 #include <vtkDataArray.h>
@@ -28,41 +30,9 @@
 
 namespace fs = std::filesystem;
 using namespace femesher;
+using femesher::test::cubeGridMesh;
 
 namespace {
-
-/// n x n x n cubes of edge h (origin `o`), each split into 6 tets around its main diagonal
-/// (Kuhn subdivision: conformal across cubes). label(centroid) chooses the material.
-template <class LabelFn>
-TetMesh cubeGridMesh(int n, double h, const Vec3& o, LabelFn label) {
-  TetMesh m;
-  auto vid = [n](int i, int j, int k) { return int32_t(i + (n + 1) * (j + (n + 1) * k)); };
-  for (int k = 0; k <= n; ++k)
-    for (int j = 0; j <= n; ++j)
-      for (int i = 0; i <= n; ++i) m.points.push_back({o[0] + h * i, o[1] + h * j, o[2] + h * k});
-  static const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-  for (int k = 0; k < n; ++k)
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i)
-        for (const auto& p : perms) {
-          int c[3] = {i, j, k};
-          std::array<int32_t, 4> t;
-          t[0] = vid(c[0], c[1], c[2]);
-          for (int s = 0; s < 3; ++s) {
-            ++c[p[s]];
-            t[size_t(s) + 1] = vid(c[0], c[1], c[2]);
-          }
-          m.tets.push_back(t);
-          if (m.tetVolume(m.tets.size() - 1) < 0) std::swap(m.tets.back()[2], m.tets.back()[3]);
-          Vec3 g{0, 0, 0};
-          for (int32_t v : m.tets.back())
-            for (int a = 0; a < 3; ++a) g[a] += m.points[size_t(v)][a] / 4;
-          m.tetLabels.push_back(label(g));
-        }
-  std::set<int32_t> ls(m.tetLabels.begin(), m.tetLabels.end());
-  for (int32_t l : ls) m.materials.push_back({l, "label " + std::to_string(l), defaultLabelColor(l)});
-  return m;
-}
 
 /// Two materials split by the plane between the 2nd and 3rd layer of cubes, non-round coordinates so that the
 /// full-precision round trip is meaningful.

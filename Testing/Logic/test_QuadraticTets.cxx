@@ -6,6 +6,8 @@
 #include <femesher/io/QuadraticTets.h>
 #include <gtest/gtest.h>
 
+#include "TestShapes.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -22,38 +24,19 @@ using namespace femesher;
 
 namespace {
 
-/// n^3 cubes split into 6 tets each (Kuhn, conformal), interior vertices jittered by up to 15 %
-/// of the edge (all tets stay positive), two materials split at x = n/2.
+/// n^3 unit cubes split into 6 tets each (Kuhn, conformal), interior vertices jittered by up to
+/// 15 % of the edge (all tets stay positive), two materials split at x = n/2 (cube by cube).
 TetMesh jitteredTwoMaterialMesh(int n) {
-  TetMesh m;
-  auto vid = [n](int i, int j, int k) { return int32_t(i + (n + 1) * (j + (n + 1) * k)); };
+  TetMesh m = femesher::test::cubeGridMesh(n, 1.0, {0, 0, 0}, [n](const Vec3& g) {
+    return 2 * int(g[0]) < n ? 1 : 2;  // the centroid lies inside its cube
+  });
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> jitter(-0.15, 0.15);
-  for (int k = 0; k <= n; ++k)
-    for (int j = 0; j <= n; ++j)
-      for (int i = 0; i <= n; ++i) {
-        const bool inner = i > 0 && j > 0 && k > 0 && i < n && j < n && k < n;
-        Vec3 p{double(i), double(j), double(k)};
-        if (inner)
-          for (double& c : p) c += jitter(rng);
-        m.points.push_back(p);
-      }
-  static const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-  for (int k = 0; k < n; ++k)
-    for (int j = 0; j < n; ++j)
-      for (int i = 0; i < n; ++i)
-        for (const auto& p : perms) {
-          int c[3] = {i, j, k};
-          std::array<int32_t, 4> t;
-          t[0] = vid(c[0], c[1], c[2]);
-          for (int s = 0; s < 3; ++s) {
-            ++c[p[s]];
-            t[size_t(s) + 1] = vid(c[0], c[1], c[2]);
-          }
-          m.tets.push_back(t);
-          if (m.tetVolume(m.tets.size() - 1) < 0) std::swap(m.tets.back()[2], m.tets.back()[3]);
-          m.tetLabels.push_back(2 * i < n ? 1 : 2);
-        }
+  for (auto& p : m.points) {
+    const bool inner = std::all_of(p.begin(), p.end(), [n](double c) { return c > 0 && c < n; });
+    if (inner)
+      for (double& c : p) c += jitter(rng);
+  }
   m.materials = {Material{1, "one", {1, 0, 0}}, Material{2, "two", {0, 1, 0}}};
   return m;
 }
@@ -194,3 +177,4 @@ TEST(QuadraticTets, WritersUseTenNodeElements) {
   EXPECT_EQ(feb.find("<tri3"), std::string::npos);
   fs::remove_all(dir);
 }
+
