@@ -125,8 +125,10 @@ const std::vector<Binding>& bindings() {
         [](MeshingParameters& p, double x) { p.volume.maxRadiusEdgeRatio = x; },
         [](const MeshingParameters& p) { return p.volume.maxRadiusEdgeRatio; });
     add({"min_dihedral_angle", "double", "degrees", "", 0, 18, "Quality bound (min dihedral)",
-         "TetGen's minimum dihedral angle target in degrees (-q ratio/angle). Above about 18 TetGen "
-         "may not terminate.", true},
+         "TetGen's minimum dihedral angle target in degrees (-q ratio/angle). Low on purpose: "
+         "TetGen fixes flat tets by adding interior points, the Optimize stage by flips, moves "
+         "and splits; 12 gives 11-26 % more tets for the same worst angle after Optimize. Above "
+         "about 18 TetGen may not terminate.", true},
         [](MeshingParameters& p, double x) { p.volume.minDihedralAngle = x; },
         [](const MeshingParameters& p) { return p.volume.minDihedralAngle; });
     add({"max_tet_volume", "double", "mm^3", "", 0, 1e9, "Largest element volume",

@@ -42,7 +42,14 @@ struct Case {
   /// knee 9.20, phantom 13.4, mickey 14.81, spheres_argmax 12.73 (15.0 with the bound 2),
   /// example_seg 5.57, frogtissue 9.76, example_seg_dicom 6.78, digimouse 6.93, colin27 6.97.
   /// Runs are the same for every thread count, so the floors hold on any machine.
+  /// 2026-11-25: TetGen's dihedral bound 3 (was 12) moved frogtissue to 9.55, mickey to 13.6 and
+  /// the phantom to 12.8 and left the others where they were.
   double minWorstAngle = 0;
+  /// Ceiling on the number of tets (issue 13: fewer elements), a few per cent above the count
+  /// measured 2026-11-25 with TetGen's dihedral bound 3: knee 506,594, colin27 2,773,833,
+  /// digimouse 717,310, frogtissue 820,007, example_seg 63,050, example_seg_dicom 165,472,
+  /// mickey 34,566, spheres_argmax 8,197 (with the bound 12: 11-26 % more). 0 = no ceiling.
+  size_t maxTets = 0;
 };
 
 /// Issue 12: fewer than 0.5 % of the tets below 15 degrees on every real volume.
@@ -124,19 +131,23 @@ TEST_P(RealData, MeshesWithAllLabelsConformalAndFaithful) {
   ASSERT_TRUE(v.isOk()) << v.status().message();
   MeshingParameters p;
   p.preprocess.minVoxels = c.minVoxels;
-  checkVolume(v.value(), p, c.file, c.minDice, nullptr, kMinVolumeDice, c.minWorstAngle);
+  PipelineResult r;
+  checkVolume(v.value(), p, c.file, c.minDice, &r, kMinVolumeDice, c.minWorstAngle);
+  if (c.maxTets > 0)
+    EXPECT_LE(r.mesh.tets.size(), c.maxTets) << c.file << ": more tets than before";
 }
 
 INSTANTIATE_TEST_SUITE_P(
     SharedData, RealData,
     ::testing::Values(Case{"420.nrrd", 1}, Case{"40420.nrrd", 1}, Case{"12323.nrrd", 1},
-                      Case{"20012323.nrrd", 1}, Case{"mickey.nrrd", 10, 0.90, 14.7},
-                      Case{"spheres_argmax.nrrd", 10, 0.90, 12.6},
-                      Case{"colin27_v3.nrrd", 10, 0.90, 6.9}, Case{"digimouse.nrrd", 10, 0.85, 6.8},
-                      Case{"frogtissue.nrrd", 10, 0.85, 9.7},
-                      Case{"example_seg.nii.gz", 10, 0.85, 5.5},
-                      Case{"example_seg_dicom.nii.gz", 10, 0.85, 6.7},
-                      Case{"9135902_00m_WB01.nii.gz", 10, 0.90, 9.1}),
+                      Case{"20012323.nrrd", 1}, Case{"mickey.nrrd", 10, 0.90, 13.5, 35600},
+                      Case{"spheres_argmax.nrrd", 10, 0.90, 12.6, 8450},
+                      Case{"colin27_v3.nrrd", 10, 0.90, 6.9, 2857000},
+                      Case{"digimouse.nrrd", 10, 0.85, 6.8, 739000},
+                      Case{"frogtissue.nrrd", 10, 0.85, 9.5, 845000},
+                      Case{"example_seg.nii.gz", 10, 0.85, 5.5, 64950},
+                      Case{"example_seg_dicom.nii.gz", 10, 0.85, 6.7, 170400},
+                      Case{"9135902_00m_WB01.nii.gz", 10, 0.90, 9.1, 521800}),
     [](const ::testing::TestParamInfo<Case>& info) {
       std::string n = info.param.file;
       for (auto& ch : n)

@@ -27,7 +27,10 @@ class RunContext;
 
 struct VolumeMeshParameters {
   double maxRadiusEdgeRatio = 3.0;  ///< 0 = no quality refinement; below about 1.2 TetGen may not terminate
-  double minDihedralAngle = 12.0;   ///< degrees
+  /// degrees (TetGen's -q ratio/angle). 3: TetGen only breaks the flattest tets and leaves the
+  /// rest to Optimize, which fixes slivers without adding interior points; 12 gave 11-26 % more
+  /// tets on the shared volumes at the same worst angle after Optimize.
+  double minDihedralAngle = 3.0;
   double maxTetVolume = 0;          ///< mm^3, 0 = none
   bool preserveInterfaces = true;   ///< -Y
   int optimizationLevel = 3;
