@@ -274,9 +274,10 @@ std::string runSummary(const PipelineResult& r, const std::vector<std::string>& 
     const auto& m = r.fidelity.materials;
     const auto [lo, hi] = std::minmax_element(
         m.begin(), m.end(), [](const auto& a, const auto& b) { return a.dice < b.dice; });
-    const std::string who = lo->name.empty()
-                                ? "label " + std::to_string(lo->label)
-                                : lo->name + ", label " + std::to_string(lo->label);
+    // The default name is "label N" already: say it once.
+    const std::string plain = "label " + std::to_string(lo->label);
+    const std::string who =
+        lo->name.empty() || lo->name == plain ? plain : lo->name + ", " + plain;
     std::snprintf(line, sizeof line, "%.4f lowest (%s) .. %.4f highest", lo->dice, who.c_str(),
                   hi->dice);
     add("Volume Dice", line);

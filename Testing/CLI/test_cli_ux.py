@@ -82,6 +82,13 @@ check(m is not None and abs(float(m.group(1)) - dice[low]) < 5e-5 and int(m.grou
       and abs(float(m.group(4)) - max(dice.values())) < 5e-5,
       "Dice range: lowest with its label and highest as in the report (%s; lowest %d %.4f, highest %.4f)"
       % (m and m.groups(), low, dice[low], max(dice.values())))
+# A material without a name of its own (mickey.nrrd names none) is "label N" once, not
+# "(label N, label N)".
+mickey = os.path.join(os.environ["FEMESHER_DATA_DIR"], "mickey.nrrd")
+r = run("mesh", mickey, "-o", os.path.join(TMP, "mickey.vtu"))
+m = re.search(r"^  Volume Dice +[0-9.]+ lowest \((.*)\) \.\.", r.stderr, re.M)
+check(r.returncode == 0 and m is not None and re.fullmatch(r"label \d+", m.group(1)) is not None,
+      "an unnamed material is named once in the summary (%s)" % (m and m.group(0),))
 m = re.search(r"^  Boundary p99 +([0-9.]+) voxels mesh to labels, ([0-9.]+) voxels labels to mesh",
               summary, re.M)
 check(m is not None and abs(float(m.group(1)) - fid["mesh_to_labels"]["p99"]) < 5e-4
