@@ -474,7 +474,7 @@ Result<MeshingParameters> presetParameters(const std::string& name) {
   }
   if (name == "fine") {  // boundary within about a third of a voxel
     p.sizing.edgeLengthFactor = 1.5;
-    p.boundary.facetDistance = 0.35;
+    p.boundary.facetDistance = 0.3;
     return p;
   }
   return Result<MeshingParameters>(ErrorCode::InvalidArgument,

@@ -161,7 +161,8 @@ TEST(RealDataPhantom, BuiltInPhantomMeshes) {
 }
 
 // Issue 13: the presets mean something. On the phantom, coarse, default and fine span at least
-// 4x in tets (measured 2026-11-24: 8.2k, 29.5k, 41.3k; on the knee 267k, 631k, 1.11M), each mesh
+// 4x in tets (measured 2026-11-25 with TetGen's dihedral bound 3 and fine's facet distance 0.3:
+// 7.8k, 25.4k, 37.1k; on the knee 224k, 507k, 944k; 2026-11-24: 8.2k, 29.5k, 41.3k), each mesh
 // keeps the invariants above, and the boundary follows the labels more closely from coarse to fine
 // (mesh -> labels p99 0.55, 0.45, 0.36 voxel), coarse still within one voxel.
 TEST(RealDataPhantom, PresetsSpanFourTimesInTetsAndOrderTheBoundaryAccuracy) {
