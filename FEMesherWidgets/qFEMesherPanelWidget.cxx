@@ -26,6 +26,7 @@
 #include <QPixmap>
 #include <QProgressBar>
 #include <QPushButton>
+#include <QScrollArea>
 #include <QTableWidget>
 #include <QVBoxLayout>
 
@@ -84,13 +85,30 @@ QPixmap colorSwatch(const std::array<double, 3>& c) {
 qFEMesherPanelWidget::qFEMesherPanelWidget(QWidget* parent) : QWidget(parent) {
   qRegisterMetaType<std::shared_ptr<const femesher::LabelVolume>>();
   runner_ = new qFEMesherRunner(this);
-  auto* layout = new QVBoxLayout(this);
+  // Input, materials, parameters and warnings scroll; Run, Cancel, the progress bar, the message
+  // and the exports stay at the bottom, visible however tall the Advanced section grows.
+  auto* outer = new QVBoxLayout(this);
+  outer->setContentsMargins(0, 0, 0, 0);
+  outer->setSpacing(2);
+  scroll_ = new QScrollArea(this);
+  scroll_->setWidgetResizable(true);
+  scroll_->setFrameShape(QFrame::NoFrame);
+  scroll_->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
+  auto* content = new QWidget(scroll_);
+  auto* layout = new QVBoxLayout(content);
   layout->setContentsMargins(6, 6, 6, 6);
   buildInputSection(layout);
   buildMaterialSection(layout);
   buildParameterSection(layout);
-  buildRunSection(layout);
-  buildExportSection(layout);
+  buildWarningsSection(layout);
+  layout->addStretch(1);
+  scroll_->setWidget(content);
+  outer->addWidget(scroll_, 1);
+  auto* bottom = new QVBoxLayout;
+  bottom->setContentsMargins(6, 0, 6, 6);
+  buildRunSection(bottom);
+  buildExportSection(bottom);
+  outer->addLayout(bottom);
   connect(runner_, &qFEMesherRunner::progressChanged, this, &qFEMesherPanelWidget::onProgress);
   connect(runner_, &qFEMesherRunner::logMessage, this, &qFEMesherPanelWidget::onLog);
   connect(runner_, &qFEMesherRunner::previewAvailable, this,
@@ -284,7 +302,9 @@ void qFEMesherPanelWidget::buildRunSection(QVBoxLayout* layout) {
   layout->addWidget(message_);
   connect(runButton_, &QPushButton::clicked, this, [this] { run(); });
   connect(cancelButton_, &QPushButton::clicked, this, &qFEMesherPanelWidget::cancel);
+}
 
+void qFEMesherPanelWidget::buildWarningsSection(QVBoxLayout* layout) {
   auto* warnBox = new QGroupBox(tr("Warnings"), this);
   auto* warnLayout = new QVBoxLayout(warnBox);
   warnings_ = new QListWidget(warnBox);
@@ -293,7 +313,6 @@ void qFEMesherPanelWidget::buildRunSection(QVBoxLayout* layout) {
   warnings_->setMaximumHeight(110);
   warnLayout->addWidget(warnings_);
   layout->addWidget(warnBox);
-  layout->addStretch(1);
 
 }
 
@@ -307,7 +326,7 @@ void qFEMesherPanelWidget::buildExportSection(QVBoxLayout* layout) {
     b->setProperty("extension", QString::fromStdString(ext));
     b->setObjectName(QStringLiteral("export") + QString::fromStdString(ext));
     b->setToolTip(tr("Save the mesh as %1").arg(QString::fromStdString(ext)));
-    exportGrid->addWidget(b, i / 3, i % 3);
+    exportGrid->addWidget(b, i / 4, i % 4);
     exportButtons_.insert(QString::fromStdString(ext), b);
     connect(b, &QPushButton::clicked, this, &qFEMesherPanelWidget::exportClicked);
     ++i;
@@ -695,7 +714,7 @@ bool qFEMesherPanelWidget::run() {
     return false;
   }
   std::shared_ptr<const femesher::LabelVolume> input = volume_;
-  result_.reset();
+  // The previous result stays (view, histograms, exports) until this run succeeds.
   warnings_->clear();
   progress_->setValue(0);
   progress_->setFormat(tr("Starting\u2026"));
@@ -721,7 +740,8 @@ void qFEMesherPanelWidget::cancel() {
 void qFEMesherPanelWidget::onProgress(const QString& stage, double stageFraction, double total) {
   progress_->setValue(int(std::lround(1000 * std::clamp(total, 0.0, 1.0))));
   progress_->setFormat(tr("%1 \u2014 %p%").arg(stageTitle(stage)));
-  progress_->setToolTip(tr("Stage %1: %2% done").arg(stage).arg(int(100 * stageFraction)));
+  progress_->setToolTip(tr("%1 (%2): %3% of this stage done")
+                           .arg(stageTitle(stage), stage).arg(int(100 * stageFraction)));
   emit progressChanged(stage, total);
 }
 
@@ -772,11 +792,18 @@ void qFEMesherPanelWidget::onSucceeded(std::shared_ptr<const femesher::PipelineR
   emit runEnded(state_, message_->text());
 }
 
+QString qFEMesherPanelWidget::keptResultNote() const {
+  if (!result_) return tr("There is no earlier mesh.");
+  return tr("The previous mesh (%1 tets) is kept: it is the one shown and exported.")
+      .arg(result_->mesh.tets.size());
+}
+
 void qFEMesherPanelWidget::onFailed(int code, const QString& message) {
   state_ = QStringLiteral("failed");
   progress_->setFormat(tr("Failed"));
-  showError(tr("The run failed (%1): %2")
-                .arg(QString::fromLatin1(femesher::errorCodeName(femesher::ErrorCode(code))), message));
+  showError(tr("The run failed (%1): %2 %3")
+                .arg(QString::fromLatin1(femesher::errorCodeName(femesher::ErrorCode(code))), message,
+                     keptResultNote()));
   updateButtons();
   emit runEnded(state_, message);
 }
@@ -785,8 +812,9 @@ void qFEMesherPanelWidget::onCanceled() {
   state_ = QStringLiteral("canceled");
   progress_->setValue(0);
   progress_->setFormat(tr("Canceled"));
-  showInfo(tr("Run canceled after %1 s of waiting; nothing was written.")
-               .arg(runner_->lastCancelLatency(), 0, 'f', 2));
+  showInfo(tr("Run canceled after %1 s of waiting; nothing was written. %2")
+               .arg(runner_->lastCancelLatency(), 0, 'f', 2)
+               .arg(keptResultNote()));
   updateButtons();
   emit runEnded(state_, message_->text());
 }
@@ -795,7 +823,8 @@ void qFEMesherPanelWidget::updateButtons() {
   const bool running = isRunning();
   runButton_->setEnabled(!running && volume_ != nullptr);
   cancelButton_->setEnabled(running);
-  for (auto* b : exportButtons_) b->setEnabled(!running && result_ != nullptr);
+  // The last good mesh can be exported even while a new run goes on (it is never modified).
+  for (auto* b : exportButtons_) b->setEnabled(result_ != nullptr);
   table_->setEnabled(!running);
   preset_->setEnabled(!running);
   for (auto* e : editors_) e->setEnabled(!running);

@@ -1,13 +1,15 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Drives the meshing panel (and the histogram widget wired to it) like a user: open a volume,
 // read the material table, change presets and parameters, save/load a parameter file (and give
-// it to the CLI), run, cancel mid-run, run to the end, exclude a material, export every format.
+// it to the CLI), run, cancel mid-run, run to the end, exclude a material, export every format,
+// cancel a second run and still export the first mesh.
 // Pure QWidgets: runs with QT_QPA_PLATFORM=offscreen.
 #include <qFEMesherPanelWidget.h>
 #include <qFEMesherQualityHistogramWidget.h>
 #include <qFEMesherRunner.h>
 
 #include <femesher/Phantom.h>
+#include <femesher/StageTable.h>
 #include <femesher/io/LabelMapIO.h>
 #include <femesher/io/MeshIO.h>
 
@@ -68,6 +70,14 @@ class PanelWidgetTest : public QObject {
             });
     panel_->resize(600, 1000);
     panel_->show();
+  }
+
+  void everyStageHasAHumanName() {
+    for (const StageInfo& s : stageTable()) {
+      const QString key = QString::fromLatin1(s.key);
+      const QString title = qFEMesherPanelWidget::stageTitle(key);
+      QVERIFY2(!title.isEmpty() && title != key && title.contains(QLatin1Char(' ')), s.key);
+    }
   }
 
   void beforeOpeningNothingRuns() {
@@ -234,10 +244,19 @@ class PanelWidgetTest : public QObject {
   void runToTheEndShowsQualityAndFidelity() {
     QVERIFY(panel_->applyPreset(QStringLiteral("default")));
     QSignalSpy succeeded(panel_.get(), &qFEMesherPanelWidget::runSucceeded);
+    QSignalSpy progress(panel_.get(), &qFEMesherPanelWidget::progressChanged);
     QVERIFY(panel_->run());
     QVERIFY(waitForEnd(300000));
     QCOMPARE(panel_->runState(), QStringLiteral("succeeded"));
     QCOMPARE(succeeded.count(), 1);
+    // Every stage the run reported has a name in words in the progress bar.
+    QSet<QString> stages;
+    for (const auto& args : progress) stages.insert(args.at(0).toString());
+    QVERIFY(stages.size() >= 8);
+    for (const QString& stage : stages) {
+      const QString title = qFEMesherPanelWidget::stageTitle(stage);
+      QVERIFY2(title != stage && title.contains(QLatin1Char(' ')), qPrintable(stage));
+    }
     auto r = panel_->result();
     QVERIFY(r);
     QVERIFY(r->mesh.tets.size() > 100);
@@ -319,6 +338,55 @@ class PanelWidgetTest : public QObject {
     // An unknown extension is refused and nothing is written.
     QVERIFY(!panel_->exportMesh(tmpFile(QStringLiteral("mesh.xyz"))));
     QVERIFY(!QFileInfo::exists(tmpFile(QStringLiteral("mesh.xyz"))));
+  }
+
+  void cancelKeepsThePreviousResult() {
+    // Issue 15: a good mesh, then a second run canceled midway: the first mesh is still the
+    // result, exportable during and after the canceled run, and the export is that mesh.
+    auto first = panel_->result();
+    QVERIFY(first);
+    const QString before = tmpFile(QStringLiteral("first.mesh"));
+    QVERIFY2(panel_->exportMesh(before), qPrintable(panel_->lastError()));
+    QVERIFY(panel_->applyPreset(QStringLiteral("fine")));
+    spin("particle_iterations")->setValue(400);
+    QSignalSpy progress(panel_.get(), &qFEMesherPanelWidget::progressChanged);
+    QSignalSpy ended(panel_.get(), &qFEMesherPanelWidget::runEnded);
+    QVERIFY(panel_->run());
+    QCOMPARE(panel_->result().get(), first.get());
+    for (const QString& ext : panel_->exportExtensions())
+      QVERIFY2(panel_->exportButton(ext)->isEnabled(), qPrintable(ext));
+    QTRY_VERIFY_WITH_TIMEOUT(
+        [&] {
+          for (const auto& args : progress)
+            if (args.at(0).toString() == QLatin1String("ParticleSystem")) return true;
+          return false;
+        }(),
+        120000);
+    const QString during = tmpFile(QStringLiteral("during.mesh"));
+    QVERIFY2(panel_->exportMesh(during), qPrintable(panel_->lastError()));
+    panel_->cancel();
+    QVERIFY(waitForEnd(60000));
+    QCOMPARE(ended.count(), 1);
+    QCOMPARE(ended.at(0).at(0).toString(), QStringLiteral("canceled"));
+    QVERIFY2(ended.at(0).at(1).toString().contains(QStringLiteral("previous mesh")),
+             qPrintable(ended.at(0).at(1).toString()));
+    QCOMPARE(panel_->result().get(), first.get());
+    for (const QString& ext : panel_->exportExtensions())
+      QVERIFY2(panel_->exportButton(ext)->isEnabled(), qPrintable(ext));
+    const QString after = tmpFile(QStringLiteral("after.mesh"));
+    QVERIFY2(panel_->exportMesh(after), qPrintable(panel_->lastError()));
+    auto bytes = [](const QString& path) {
+      QFile f(path);
+      return f.open(QIODevice::ReadOnly) ? f.readAll() : QByteArray();
+    };
+    const QByteArray firstBytes = bytes(before);
+    QVERIFY(firstBytes.size() > 1000);
+    QVERIFY2(bytes(after) == firstBytes, "the export after the canceled run is not the first mesh");
+    QVERIFY2(bytes(during) == firstBytes, "the export during the run is not the first mesh");
+    auto back = readMesh(after.toStdString());
+    QVERIFY2(back.isOk(), back.status().message().c_str());
+    QCOMPARE(back->tets.size(), first->mesh.tets.size());
+    QVERIFY(panel_->applyPreset(QStringLiteral("default")));
   }
 
   void excludedMaterialIsNotMeshed() {
