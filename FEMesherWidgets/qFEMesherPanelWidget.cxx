@@ -159,6 +159,9 @@ void qFEMesherPanelWidget::buildMaterialSection(QVBoxLayout* layout) {
   for (int c = 0; c < ColumnCount; ++c)
     if (c != ColName) table_->setColumnWidth(c, widths[c]);
   table_->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
+  table_->horizontalHeaderItem(ColName)->setToolTip(
+      tr("Double-click to rename: the name goes into the mesh, every export and the report, and is "
+         "saved with the parameters as material.<label>.name"));
   table_->horizontalHeaderItem(ColMesh)->setToolTip(
       tr("Unticked materials are not meshed: see 'If excluded' for what becomes of them"));
   table_->horizontalHeaderItem(ColExclude)->setToolTip(
@@ -412,9 +415,13 @@ void qFEMesherPanelWidget::fillMaterialTable() {
     auto* id = new QTableWidgetItem(QString::number(s.id));
     id->setFlags(Qt::ItemIsEnabled | Qt::ItemIsSelectable);
     table_->setItem(row, ColId, id);
-    auto* name = new QTableWidgetItem(
-        QString::fromStdString(m ? m->name : (s.name.empty() ? "label " + std::to_string(s.id) : s.name)));
-    name->setFlags(Qt::ItemIsEnabled | Qt::ItemIsSelectable);
+    const QString mapName =
+        QString::fromStdString(m ? m->name : (s.name.empty() ? "label " + std::to_string(s.id) : s.name));
+    auto given = p.preprocess.names.find(s.id);
+    auto* name = new QTableWidgetItem(given != p.preprocess.names.end()
+                                          ? QString::fromStdString(given->second) : mapName);
+    name->setData(Qt::UserRole, mapName);  // the label map's own name
+    name->setFlags(Qt::ItemIsEnabled | Qt::ItemIsSelectable | Qt::ItemIsEditable);
     table_->setItem(row, ColName, name);
     const auto color = m ? m->color : femesher::defaultLabelColor(s.id);
     auto* colorItem = new QTableWidgetItem;
@@ -544,6 +551,17 @@ femesher::MeshingParameters qFEMesherPanelWidget::parameters() const {
   // Materials not in the table (e.g. from a loaded parameter file) are kept.
   for (const auto& [id, props] : hidden_.materialProperties)
     if (materialRow(id) < 0) p.materialProperties[id] = props;
+  // Names: a row whose name differs from the label map's sets material.<label>.name.
+  p.preprocess.names.clear();
+  for (const auto& [id, name] : hidden_.preprocess.names)
+    if (materialRow(id) < 0) p.preprocess.names[id] = name;
+  for (int r = 0; r < table_->rowCount(); ++r) {
+    const int32_t id = table_->item(r, ColMesh)->data(Qt::UserRole).toInt();
+    const QTableWidgetItem* name = table_->item(r, ColName);
+    const QString text = name->text().simplified();
+    if (!text.isEmpty() && text != name->data(Qt::UserRole).toString())
+      p.preprocess.names[id] = text.toStdString();
+  }
   p.preprocess.excluded.clear();
   for (const auto& [id, how] : hidden_.preprocess.excluded)
     if (materialRow(id) < 0) p.preprocess.excluded[id] = how;
@@ -567,6 +585,10 @@ void qFEMesherPanelWidget::setParameters(const femesher::MeshingParameters& para
         ->setValue(it != params.materialProperties.end() ? it->second.youngsModulus : 0.0);
     static_cast<QDoubleSpinBox*>(table_->cellWidget(r, ColNu))
         ->setValue(it != params.materialProperties.end() ? it->second.poissonRatio : -1.0);
+    QTableWidgetItem* name = table_->item(r, ColName);
+    auto given = params.preprocess.names.find(id);
+    name->setText(given != params.preprocess.names.end() ? QString::fromStdString(given->second)
+                                                         : name->data(Qt::UserRole).toString());
     auto ex = params.preprocess.excluded.find(id);
     setMaterialIncluded(id, ex == params.preprocess.excluded.end());
     if (ex != params.preprocess.excluded.end()) setMaterialExclusion(id, ex->second);
@@ -581,6 +603,7 @@ QString qFEMesherPanelWidget::matchingPreset() const {
   femesher::MeshingParameters mine = parameters();
   mine.materialProperties.clear();
   mine.preprocess.excluded.clear();
+  mine.preprocess.names.clear();
   for (const auto& name : femesher::presetNames()) {
     auto preset = femesher::presetParameters(name);
     if (!preset) continue;
@@ -601,6 +624,7 @@ bool qFEMesherPanelWidget::applyPreset(const QString& name) {
   p.defaultMaterial = current.defaultMaterial;
   p.materialProperties = current.materialProperties;
   p.preprocess.excluded = current.preprocess.excluded;
+  p.preprocess.names = current.preprocess.names;
   p.run.threads = current.run.threads;
   setParameters(p);
   return true;

@@ -9,7 +9,8 @@
 /// units, ranges, tooltips), so a parameter added to the logic appears here by itself. Saved
 /// parameter files are `parametersToJson` output and are accepted by `femesher mesh --parameters`.
 ///
-/// Material table: id, name, colour, voxel count and volume (from `summarizeLabelMap`), a
+/// Material table: id, name (editable: a name other than the label map's is the parameter
+/// `material.<label>.name`), colour, voxel count and volume (from `summarizeLabelMap`), a
 /// "Mesh" checkbox and, for an unticked material, what becomes of it ("background": a cavity or
 /// a cut; "merge": its voxels join the neighbouring material): both are the parameter
 /// `material.<label>.exclude`, so a saved parameter file reproduces the panel's run from the CLI;

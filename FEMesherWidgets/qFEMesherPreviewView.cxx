@@ -273,6 +273,26 @@ qFEMesherPreviewView::qFEMesherPreviewView(QWidget* parent) : QWidget(parent) {
   inputActor_->VisibilityOff();
   renderer_->AddActor(inputActor_);
 
+  // The tet asked for by showElement(): its edges in yellow, drawn over the surfaces.
+  highlight_ = vtkSmartPointer<vtkPolyData>::New();
+  auto highlightMapper = vtkSmartPointer<vtkPolyDataMapper>::New();
+  highlightMapper->SetInputData(highlight_);
+  highlightMapper->SetResolveCoincidentTopologyToPolygonOffset();
+  highlightActor_ = vtkSmartPointer<vtkActor>::New();
+  highlightActor_->SetMapper(highlightMapper);
+  highlightActor_->GetProperty()->SetColor(1.0, 0.9, 0.0);
+  highlightActor_->GetProperty()->SetLineWidth(4.0f);
+  highlightActor_->GetProperty()->LightingOff();
+  highlightActor_->VisibilityOff();
+  // Drawn by a second renderer on top of the scene (same camera), so the tet shows through.
+  overlay_ = vtkSmartPointer<vtkRenderer>::New();
+  overlay_->SetLayer(1);
+  overlay_->SetActiveCamera(renderer_->GetActiveCamera());
+  overlay_->InteractiveOff();
+  renderWindow_->SetNumberOfLayers(2);
+  renderWindow_->AddRenderer(overlay_);
+  overlay_->AddActor(highlightActor_);
+
   outline_ = vtkSmartPointer<vtkOutlineSource>::New();
   auto outlineMapper = vtkSmartPointer<vtkPolyDataMapper>::New();
   outlineMapper->SetInputConnection(outline_->GetOutputPort());
@@ -405,6 +425,8 @@ void qFEMesherPreviewView::clear() {
   pending_.reset();
   mesh_.reset();
   quality_.reset();
+  highlighted_ = -1;
+  highlightActor_->VisibilityOff();
   ++meshGeneration_;
   ++inputGeneration_;
   preparingInput_ = false;
@@ -538,6 +560,7 @@ void qFEMesherPreviewView::drawPendingSnapshot() {
 
   meshActor_->VisibilityOff();
   inputActor_->VisibilityOff();
+  highlightActor_->VisibilityOff();
   scalarBar_->VisibilityOff();
   if (s->kind == "surface" && !s->triangles.empty()) {
     auto tris = vtkSmartPointer<vtkCellArray>::New();
@@ -661,6 +684,9 @@ void qFEMesherPreviewView::setMesh(std::shared_ptr<const femesher::TetMesh> mesh
 }
 
 void qFEMesherPreviewView::finishMesh() {
+  if (!quality_) quality_ = std::make_shared<const femesher::TetQuality>(femesher::computeTetQuality(*mesh_));
+  highlighted_ = -1;
+  highlightActor_->VisibilityOff();
   updateMeshColors();
   updateClipPlane();
   {  // frame the mesh (same viewing direction)
@@ -670,6 +696,54 @@ void qFEMesherPreviewView::finishMesh() {
     renderer_->GetActiveCamera()->Zoom(1.1);
   }
   showMeshActors();
+  emit meshShown(mesh_, quality_);
+}
+
+bool qFEMesherPreviewView::showElement(size_t tet) {
+  if (!mesh_ || preparing_ || content_ != Content::Mesh || tet >= mesh_->tets.size()) return false;
+  const auto& t = mesh_->tets[tet];
+  auto pts = vtkSmartPointer<vtkPoints>::New();
+  double c[3] = {0, 0, 0}, minY = 1e300, longest = 0;
+  for (int k = 0; k < 4; ++k) {
+    const femesher::Vec3& p = mesh_->points[size_t(t[size_t(k)])];
+    pts->InsertNextPoint(p[0], p[1], p[2]);
+    for (int a = 0; a < 3; ++a) c[a] += 0.25 * p[size_t(a)];
+    minY = std::min(minY, p[1]);
+    for (int l = 0; l < k; ++l) {
+      const femesher::Vec3& q = mesh_->points[size_t(t[size_t(l)])];
+      longest = std::max(longest, std::sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) +
+                                            (p[2] - q[2]) * (p[2] - q[2])));
+    }
+  }
+  auto lines = vtkSmartPointer<vtkCellArray>::New();
+  for (int a = 0; a < 4; ++a)
+    for (int b = a + 1; b < 4; ++b) {
+      const vtkIdType e[2] = {a, b};
+      lines->InsertNextCell(2, e);
+    }
+  highlight_->Initialize();
+  highlight_->SetPoints(pts);
+  highlight_->SetLines(lines);
+  highlight_->Modified();
+  highlightActor_->VisibilityOn();
+  highlighted_ = (long long)tet;
+  // Cut just in front of the tet (it lies wholly on the kept, far side) and look at the cut face.
+  double b[6];
+  shown_->GetBounds(b);
+  const double span = b[3] > b[2] ? b[3] - b[2] : 1.0;
+  setClipping(true, 1, std::floor(100.0 * (minY - b[2]) / span) / 100.0);
+  vtkCamera* cam = renderer_->GetActiveCamera();
+  const double dist = std::max(12.0 * longest, 1e-3);
+  cam->SetFocalPoint(c);
+  cam->SetPosition(c[0] + 0.25 * dist, c[1] - dist, c[2] + 0.25 * dist);
+  cam->SetViewUp(0, 0, 1);
+  setStatusText(tr("Tet %1 (material %2)").arg(tet).arg(mesh_->tetLabels[tet]));
+  renderNow();
+  return true;
+}
+
+double qFEMesherPreviewView::cameraFocalPoint(int axis) const {
+  return renderer_->GetActiveCamera()->GetFocalPoint()[std::clamp(axis, 0, 2)];
 }
 
 bool qFEMesherPreviewView::restoreMesh() {
@@ -744,7 +818,7 @@ void qFEMesherPreviewView::updateMeshColors() {
     scalarBar_->VisibilityOff();
     legend_->SetVisibility(!mesh_->materials.empty());
   } else {
-    if (!quality_) quality_ = std::make_unique<femesher::TetQuality>(femesher::computeTetQuality(*mesh_));
+    if (!quality_) quality_ = std::make_shared<const femesher::TetQuality>(femesher::computeTetQuality(*mesh_));
     const std::vector<double>* values = nullptr;
     double lo = 0, hi = 1;
     bool highIsBad = true;

@@ -86,6 +86,14 @@ class qFEMesherPreviewView : public QWidget {
   bool restoreMesh();
   void clear();
 
+  /// Point the camera at tet `tet` of the mesh shown, cut the mesh just in front of it (the
+  /// front-back plane) and outline it in yellow. False if there is no such tet (or the mesh is
+  /// still being prepared).
+  bool showElement(size_t tet);
+  /// The outlined tet, -1 when none.
+  long long highlightedElement() const { return highlighted_; }
+  double cameraFocalPoint(int axis) const;
+
   void setColorBy(ColorBy mode);
   ColorBy colorBy() const;
   /// Clipping plane perpendicular to `axis` (0 = L, 1 = P, 2 = S) at `fraction` of the bounds;
@@ -109,6 +117,9 @@ class qFEMesherPreviewView : public QWidget {
 
  signals:
   void snapshotDrawn(int pointCount);
+  /// A mesh is on screen, with its per-tet quality (computed off the GUI thread for large ones).
+  void meshShown(std::shared_ptr<const femesher::TetMesh> mesh,
+                 std::shared_ptr<const femesher::TetQuality> quality);
 
  private slots:
   void drawPendingSnapshot();
@@ -161,7 +172,11 @@ class qFEMesherPreviewView : public QWidget {
 
   std::vector<femesher::Material> materials_;
   std::shared_ptr<const femesher::TetMesh> mesh_;
-  std::unique_ptr<femesher::TetQuality> quality_;  ///< per-tet values, computed on demand
+  std::shared_ptr<const femesher::TetQuality> quality_;  ///< per-tet values of mesh_
+  vtkSmartPointer<vtkPolyData> highlight_;
+  vtkSmartPointer<vtkActor> highlightActor_;
+  vtkSmartPointer<vtkRenderer> overlay_;
+  long long highlighted_ = -1;
   std::shared_ptr<const femesher::PreviewSnapshot> pending_;
   std::vector<std::pair<int32_t, int32_t>> legendPairs_;
   Content content_ = Content::Empty;

@@ -103,6 +103,10 @@ qFEMesherMainWindow::qFEMesherMainWindow(QWidget* parent) : QMainWindow(parent) 
   connect(panel_, &qFEMesherPanelWidget::statusMessage, this,
           [this](const QString& m) { statusBar()->showMessage(m, 8000); });
   connect(view_, &qFEMesherPreviewView::snapshotDrawn, this, &qFEMesherMainWindow::onSnapshotDrawn);
+  connect(view_, &qFEMesherPreviewView::meshShown, histograms_,
+          &qFEMesherQualityHistogramWidget::setTetQuality);
+  connect(histograms_, &qFEMesherQualityHistogramWidget::showElementRequested, view_,
+          [this](long long tet) { view_->showElement(size_t(tet)); });
   statusBar()->showMessage(tr("Open a segmentation (File > Open, or drop a file here), or File > Open sample."));
 }
 
@@ -214,9 +218,10 @@ void qFEMesherMainWindow::closeEvent(QCloseEvent* event) {
 }
 
 void qFEMesherMainWindow::onRunSucceeded(std::shared_ptr<const femesher::PipelineResult> result) {
-  view_->setMesh(std::shared_ptr<const femesher::TetMesh>(result, &result->mesh));
+  // Reports first: the view's meshShown (at once for a small mesh) then adds the per-tet values.
   histograms_->setReports(result->quality, result->hasFidelity ? &result->fidelity : nullptr,
                           result->mesh.materials);
+  view_->setMesh(std::shared_ptr<const femesher::TetMesh>(result, &result->mesh));
 }
 
 // --- screenshots -----------------------------------------------------------------------------------

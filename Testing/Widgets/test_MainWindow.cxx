@@ -118,6 +118,12 @@ class MainWindowTest : public QObject {
       QVERIFY(window_->saveScreenshot(path));
       QCOMPARE(QImage(path).size(), size);
     }
+    // "Show worst" of the minimum dihedral angle: the view outlines that tet.
+    qFEMesherQualityHistogramWidget* h = window_->histograms();
+    QVERIFY(h->worstElement(2) >= 0);
+    h->worstButton(2)->click();
+    QCOMPARE(window_->view()->highlightedElement(), h->worstElement(2));
+    QVERIFY(window_->saveScreenshot(QDir(dir).filePath(QStringLiteral("window_worst_dihedral_1600x1000.png"))));
     window_->view()->setClipping(false);
   }
 

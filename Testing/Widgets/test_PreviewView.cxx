@@ -135,6 +135,44 @@ class PreviewViewTest : public QObject {
     QCOMPARE(view.colorBy(), qFEMesherPreviewView::ColorBy::MinDihedral);
     const QImage metric = view.grabRenderImage();
     QVERIFY(metric != img);
+    // Showing one tet: camera on its centroid, cut in front of it, its edges in yellow.
+    view.setColorBy(qFEMesherPreviewView::ColorBy::Material);
+    QCOMPARE(view.highlightedElement(), -1LL);
+    QVERIFY(!view.showElement(mesh->tets.size()));
+    const size_t tet = mesh->tets.size() / 2 + 7;
+    QVERIFY(view.showElement(tet));
+    QCOMPARE(view.highlightedElement(), (long long)tet);
+    for (int a = 0; a < 3; ++a) {
+      double c = 0;
+      for (int k = 0; k < 4; ++k) c += 0.25 * mesh->points[size_t(mesh->tets[tet][size_t(k)])][size_t(a)];
+      QVERIFY(std::abs(view.cameraFocalPoint(a) - c) < 1e-9);
+    }
+    QVERIFY(view.isClipping());
+    const int yellow = pixelsLike(view.grabRenderImage(), {{1.0, 0.9, 0.0}});
+    qInfo("highlighted tet: %d yellow pixels", yellow);
+    QVERIFY(yellow > 30);
+  }
+
+  void meshShownCarriesTheQuality() {
+    qFEMesherPreviewView view;
+    view.resize(320, 240);
+    view.show();
+    QVERIFY(QTest::qWaitForWindowExposed(&view));
+    int shown = 0;
+    size_t values = 0;
+    connect(&view, &qFEMesherPreviewView::meshShown,
+            [&](std::shared_ptr<const TetMesh>, std::shared_ptr<const TetQuality> q) {
+              ++shown;
+              values = q ? q->minDihedral.size() : 0;
+            });
+    auto mesh = std::make_shared<TetMesh>(makeBlockMesh(4, 1.0));
+    view.setMesh(mesh);
+    QCOMPARE(shown, 1);
+    QCOMPARE(values, mesh->tets.size());
+    view.setSurfaceOnlyThreshold(10);  // the worker path
+    view.setMesh(mesh);
+    QTRY_COMPARE_WITH_TIMEOUT(shown, 2, 30000);
+    QCOMPARE(values, mesh->tets.size());
   }
 
   void openedLabelMapIsShownAsSurfaces() {
