@@ -26,6 +26,7 @@
 #include <QPixmap>
 #include <QProgressBar>
 #include <QPushButton>
+#include <QScrollArea>
 #include <QTableWidget>
 #include <QVBoxLayout>
 
@@ -84,13 +85,30 @@ QPixmap colorSwatch(const std::array<double, 3>& c) {
 qFEMesherPanelWidget::qFEMesherPanelWidget(QWidget* parent) : QWidget(parent) {
   qRegisterMetaType<std::shared_ptr<const femesher::LabelVolume>>();
   runner_ = new qFEMesherRunner(this);
-  auto* layout = new QVBoxLayout(this);
+  // Input, materials, parameters and warnings scroll; Run, Cancel, the progress bar, the message
+  // and the exports stay at the bottom, visible however tall the Advanced section grows.
+  auto* outer = new QVBoxLayout(this);
+  outer->setContentsMargins(0, 0, 0, 0);
+  outer->setSpacing(2);
+  scroll_ = new QScrollArea(this);
+  scroll_->setWidgetResizable(true);
+  scroll_->setFrameShape(QFrame::NoFrame);
+  scroll_->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
+  auto* content = new QWidget(scroll_);
+  auto* layout = new QVBoxLayout(content);
   layout->setContentsMargins(6, 6, 6, 6);
   buildInputSection(layout);
   buildMaterialSection(layout);
   buildParameterSection(layout);
-  buildRunSection(layout);
-  buildExportSection(layout);
+  buildWarningsSection(layout);
+  layout->addStretch(1);
+  scroll_->setWidget(content);
+  outer->addWidget(scroll_, 1);
+  auto* bottom = new QVBoxLayout;
+  bottom->setContentsMargins(6, 0, 6, 6);
+  buildRunSection(bottom);
+  buildExportSection(bottom);
+  outer->addLayout(bottom);
   connect(runner_, &qFEMesherRunner::progressChanged, this, &qFEMesherPanelWidget::onProgress);
   connect(runner_, &qFEMesherRunner::logMessage, this, &qFEMesherPanelWidget::onLog);
   connect(runner_, &qFEMesherRunner::previewAvailable, this,
@@ -141,6 +159,9 @@ void qFEMesherPanelWidget::buildMaterialSection(QVBoxLayout* layout) {
   for (int c = 0; c < ColumnCount; ++c)
     if (c != ColName) table_->setColumnWidth(c, widths[c]);
   table_->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
+  table_->horizontalHeaderItem(ColName)->setToolTip(
+      tr("Double-click to rename: the name goes into the mesh, every export and the report, and is "
+         "saved with the parameters as material.<label>.name"));
   table_->horizontalHeaderItem(ColMesh)->setToolTip(
       tr("Unticked materials are not meshed: see 'If excluded' for what becomes of them"));
   table_->horizontalHeaderItem(ColExclude)->setToolTip(
@@ -284,7 +305,9 @@ void qFEMesherPanelWidget::buildRunSection(QVBoxLayout* layout) {
   layout->addWidget(message_);
   connect(runButton_, &QPushButton::clicked, this, [this] { run(); });
   connect(cancelButton_, &QPushButton::clicked, this, &qFEMesherPanelWidget::cancel);
+}
 
+void qFEMesherPanelWidget::buildWarningsSection(QVBoxLayout* layout) {
   auto* warnBox = new QGroupBox(tr("Warnings"), this);
   auto* warnLayout = new QVBoxLayout(warnBox);
   warnings_ = new QListWidget(warnBox);
@@ -293,7 +316,6 @@ void qFEMesherPanelWidget::buildRunSection(QVBoxLayout* layout) {
   warnings_->setMaximumHeight(110);
   warnLayout->addWidget(warnings_);
   layout->addWidget(warnBox);
-  layout->addStretch(1);
 
 }
 
@@ -307,7 +329,7 @@ void qFEMesherPanelWidget::buildExportSection(QVBoxLayout* layout) {
     b->setProperty("extension", QString::fromStdString(ext));
     b->setObjectName(QStringLiteral("export") + QString::fromStdString(ext));
     b->setToolTip(tr("Save the mesh as %1").arg(QString::fromStdString(ext)));
-    exportGrid->addWidget(b, i / 3, i % 3);
+    exportGrid->addWidget(b, i / 4, i % 4);
     exportButtons_.insert(QString::fromStdString(ext), b);
     connect(b, &QPushButton::clicked, this, &qFEMesherPanelWidget::exportClicked);
     ++i;
@@ -393,9 +415,13 @@ void qFEMesherPanelWidget::fillMaterialTable() {
     auto* id = new QTableWidgetItem(QString::number(s.id));
     id->setFlags(Qt::ItemIsEnabled | Qt::ItemIsSelectable);
     table_->setItem(row, ColId, id);
-    auto* name = new QTableWidgetItem(
-        QString::fromStdString(m ? m->name : (s.name.empty() ? "label " + std::to_string(s.id) : s.name)));
-    name->setFlags(Qt::ItemIsEnabled | Qt::ItemIsSelectable);
+    const QString mapName =
+        QString::fromStdString(m ? m->name : (s.name.empty() ? "label " + std::to_string(s.id) : s.name));
+    auto given = p.preprocess.names.find(s.id);
+    auto* name = new QTableWidgetItem(given != p.preprocess.names.end()
+                                          ? QString::fromStdString(given->second) : mapName);
+    name->setData(Qt::UserRole, mapName);  // the label map's own name
+    name->setFlags(Qt::ItemIsEnabled | Qt::ItemIsSelectable | Qt::ItemIsEditable);
     table_->setItem(row, ColName, name);
     const auto color = m ? m->color : femesher::defaultLabelColor(s.id);
     auto* colorItem = new QTableWidgetItem;
@@ -525,6 +551,17 @@ femesher::MeshingParameters qFEMesherPanelWidget::parameters() const {
   // Materials not in the table (e.g. from a loaded parameter file) are kept.
   for (const auto& [id, props] : hidden_.materialProperties)
     if (materialRow(id) < 0) p.materialProperties[id] = props;
+  // Names: a row whose name differs from the label map's sets material.<label>.name.
+  p.preprocess.names.clear();
+  for (const auto& [id, name] : hidden_.preprocess.names)
+    if (materialRow(id) < 0) p.preprocess.names[id] = name;
+  for (int r = 0; r < table_->rowCount(); ++r) {
+    const int32_t id = table_->item(r, ColMesh)->data(Qt::UserRole).toInt();
+    const QTableWidgetItem* name = table_->item(r, ColName);
+    const QString text = name->text().simplified();
+    if (!text.isEmpty() && text != name->data(Qt::UserRole).toString())
+      p.preprocess.names[id] = text.toStdString();
+  }
   p.preprocess.excluded.clear();
   for (const auto& [id, how] : hidden_.preprocess.excluded)
     if (materialRow(id) < 0) p.preprocess.excluded[id] = how;
@@ -548,6 +585,10 @@ void qFEMesherPanelWidget::setParameters(const femesher::MeshingParameters& para
         ->setValue(it != params.materialProperties.end() ? it->second.youngsModulus : 0.0);
     static_cast<QDoubleSpinBox*>(table_->cellWidget(r, ColNu))
         ->setValue(it != params.materialProperties.end() ? it->second.poissonRatio : -1.0);
+    QTableWidgetItem* name = table_->item(r, ColName);
+    auto given = params.preprocess.names.find(id);
+    name->setText(given != params.preprocess.names.end() ? QString::fromStdString(given->second)
+                                                         : name->data(Qt::UserRole).toString());
     auto ex = params.preprocess.excluded.find(id);
     setMaterialIncluded(id, ex == params.preprocess.excluded.end());
     if (ex != params.preprocess.excluded.end()) setMaterialExclusion(id, ex->second);
@@ -562,6 +603,7 @@ QString qFEMesherPanelWidget::matchingPreset() const {
   femesher::MeshingParameters mine = parameters();
   mine.materialProperties.clear();
   mine.preprocess.excluded.clear();
+  mine.preprocess.names.clear();
   for (const auto& name : femesher::presetNames()) {
     auto preset = femesher::presetParameters(name);
     if (!preset) continue;
@@ -582,6 +624,7 @@ bool qFEMesherPanelWidget::applyPreset(const QString& name) {
   p.defaultMaterial = current.defaultMaterial;
   p.materialProperties = current.materialProperties;
   p.preprocess.excluded = current.preprocess.excluded;
+  p.preprocess.names = current.preprocess.names;
   p.run.threads = current.run.threads;
   setParameters(p);
   return true;
@@ -695,7 +738,7 @@ bool qFEMesherPanelWidget::run() {
     return false;
   }
   std::shared_ptr<const femesher::LabelVolume> input = volume_;
-  result_.reset();
+  // The previous result stays (view, histograms, exports) until this run succeeds.
   warnings_->clear();
   progress_->setValue(0);
   progress_->setFormat(tr("Starting\u2026"));
@@ -721,7 +764,8 @@ void qFEMesherPanelWidget::cancel() {
 void qFEMesherPanelWidget::onProgress(const QString& stage, double stageFraction, double total) {
   progress_->setValue(int(std::lround(1000 * std::clamp(total, 0.0, 1.0))));
   progress_->setFormat(tr("%1 \u2014 %p%").arg(stageTitle(stage)));
-  progress_->setToolTip(tr("Stage %1: %2% done").arg(stage).arg(int(100 * stageFraction)));
+  progress_->setToolTip(tr("%1 (%2): %3% of this stage done")
+                           .arg(stageTitle(stage), stage).arg(int(100 * stageFraction)));
   emit progressChanged(stage, total);
 }
 
@@ -772,11 +816,18 @@ void qFEMesherPanelWidget::onSucceeded(std::shared_ptr<const femesher::PipelineR
   emit runEnded(state_, message_->text());
 }
 
+QString qFEMesherPanelWidget::keptResultNote() const {
+  if (!result_) return tr("There is no earlier mesh.");
+  return tr("The previous mesh (%1 tets) is kept: it is the one shown and exported.")
+      .arg(result_->mesh.tets.size());
+}
+
 void qFEMesherPanelWidget::onFailed(int code, const QString& message) {
   state_ = QStringLiteral("failed");
   progress_->setFormat(tr("Failed"));
-  showError(tr("The run failed (%1): %2")
-                .arg(QString::fromLatin1(femesher::errorCodeName(femesher::ErrorCode(code))), message));
+  showError(tr("The run failed (%1): %2 %3")
+                .arg(QString::fromLatin1(femesher::errorCodeName(femesher::ErrorCode(code))), message,
+                     keptResultNote()));
   updateButtons();
   emit runEnded(state_, message);
 }
@@ -785,8 +836,9 @@ void qFEMesherPanelWidget::onCanceled() {
   state_ = QStringLiteral("canceled");
   progress_->setValue(0);
   progress_->setFormat(tr("Canceled"));
-  showInfo(tr("Run canceled after %1 s of waiting; nothing was written.")
-               .arg(runner_->lastCancelLatency(), 0, 'f', 2));
+  showInfo(tr("Run canceled after %1 s of waiting; nothing was written. %2")
+               .arg(runner_->lastCancelLatency(), 0, 'f', 2)
+               .arg(keptResultNote()));
   updateButtons();
   emit runEnded(state_, message_->text());
 }
@@ -795,7 +847,8 @@ void qFEMesherPanelWidget::updateButtons() {
   const bool running = isRunning();
   runButton_->setEnabled(!running && volume_ != nullptr);
   cancelButton_->setEnabled(running);
-  for (auto* b : exportButtons_) b->setEnabled(!running && result_ != nullptr);
+  // The last good mesh can be exported even while a new run goes on (it is never modified).
+  for (auto* b : exportButtons_) b->setEnabled(result_ != nullptr);
   table_->setEnabled(!running);
   preset_->setEnabled(!running);
   for (auto* e : editors_) e->setEnabled(!running);

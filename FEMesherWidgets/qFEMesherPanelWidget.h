@@ -9,12 +9,16 @@
 /// units, ranges, tooltips), so a parameter added to the logic appears here by itself. Saved
 /// parameter files are `parametersToJson` output and are accepted by `femesher mesh --parameters`.
 ///
-/// Material table: id, name, colour, voxel count and volume (from `summarizeLabelMap`), a
+/// Material table: id, name (editable: a name other than the label map's is the parameter
+/// `material.<label>.name`), colour, voxel count and volume (from `summarizeLabelMap`), a
 /// "Mesh" checkbox and, for an unticked material, what becomes of it ("background": a cavity or
 /// a cut; "merge": its voxels join the neighbouring material): both are the parameter
 /// `material.<label>.exclude`, so a saved parameter file reproduces the panel's run from the CLI;
 /// Young's modulus / Poisson ratio (into `MeshingParameters::materialProperties`, written to
 /// INP/FEB exports).
+///
+/// Layout: the input, material table, parameters (Advanced folds out) and warnings scroll; Run,
+/// Cancel, the progress bar, the message line and the export buttons stay visible below them.
 ///
 /// Long work runs in `qFEMesherRunner` (worker thread); the panel never blocks. Errors are shown
 /// inline (no modal dialogs) so the panel can be driven by tests and scripts.
@@ -39,6 +43,7 @@ class QLabel;
 class QLineEdit;
 class QListWidget;
 class QProgressBar;
+class QScrollArea;
 class QPushButton;
 class QTableWidget;
 class qFEMesherRunner;
@@ -78,6 +83,8 @@ class qFEMesherPanelWidget : public QWidget {
   /// The editor of a parameter key (QDoubleSpinBox, QCheckBox, QComboBox or QLineEdit).
   QWidget* parameterEditor(const QString& key) const { return editors_.value(key, nullptr); }
   QGroupBox* advancedGroup() const { return advanced_; }
+  /// The scrolling part of the panel (everything above Run / Cancel).
+  QScrollArea* scrollArea() const { return scroll_; }
 
   // --- materials --------------------------------------------------------------------------------
   QTableWidget* materialTable() const { return table_; }
@@ -93,6 +100,8 @@ class qFEMesherPanelWidget : public QWidget {
   void cancel();
   bool isRunning() const;
   qFEMesherRunner* runner() const { return runner_; }
+  /// The last successful run's result. A new run replaces it only when it succeeds: while it
+  /// runs, and after it is canceled or fails, the previous result stays (and stays exportable).
   std::shared_ptr<const femesher::PipelineResult> result() const { return result_; }
   QProgressBar* progressBar() const { return progress_; }
   QListWidget* warningsList() const { return warnings_; }
@@ -115,7 +124,8 @@ class qFEMesherPanelWidget : public QWidget {
   void runStarted();
   void previewAvailable(std::shared_ptr<const femesher::PreviewSnapshot> snapshot);
   void runSucceeded(std::shared_ptr<const femesher::PipelineResult> result);
-  /// After every run: state = "succeeded", "failed" or "canceled".
+  /// After every run: state = "succeeded", "failed" or "canceled" (then result() is still the
+  /// previous run's, if any).
   void runEnded(const QString& state, const QString& message);
   void progressChanged(const QString& stage, double totalFraction);
   void statusMessage(const QString& message);
@@ -140,6 +150,7 @@ class qFEMesherPanelWidget : public QWidget {
   void buildMaterialSection(QVBoxLayout* layout);
   void buildParameterSection(QVBoxLayout* layout);
   void buildRunSection(QVBoxLayout* layout);
+  void buildWarningsSection(QVBoxLayout* layout);
   void buildExportSection(QVBoxLayout* layout);
   QWidget* makeParameterEditor(const femesher::ParameterDescriptor& d, QWidget* owner);
   void fillMaterialTable();
@@ -150,6 +161,7 @@ class qFEMesherPanelWidget : public QWidget {
   void setEditorValue(const std::string& key, const std::string& value);
   std::string editorValue(const std::string& key) const;
   QString matchingPreset() const;
+  QString keptResultNote() const;
 
   std::shared_ptr<const femesher::LabelVolume> volume_;
   std::shared_ptr<const femesher::PipelineResult> result_;
@@ -159,6 +171,7 @@ class qFEMesherPanelWidget : public QWidget {
   qFEMesherRunner* runner_ = nullptr;
   bool updating_ = false;
 
+  QScrollArea* scroll_ = nullptr;
   QWidget* fileRow_ = nullptr;
   QLineEdit* fileEdit_ = nullptr;
   QLabel* volumeInfo_ = nullptr;

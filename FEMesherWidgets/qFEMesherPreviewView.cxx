@@ -31,6 +31,12 @@
 #include <vtkUnstructuredGrid.h>
 #include <vtkWindowToImageFilter.h>
 #include <vtkImageData.h>
+#include <vtkIntArray.h>
+#include <vtkAxesActor.h>
+#include <vtkCaptionActor2D.h>
+#include <vtkDiscreteFlyingEdges3D.h>
+#include <vtkOrientationMarkerWidget.h>
+#include <vtkRenderWindowInteractor.h>
 
 #include <QCheckBox>
 #include <QComboBox>
@@ -38,11 +44,13 @@
 #include <QHBoxLayout>
 #include <QLabel>
 #include <QSlider>
+#include <QThread>
 #include <QTimer>
 #include <QVBoxLayout>
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 
 namespace {
@@ -57,6 +65,98 @@ constexpr int kPairPaletteSize = sizeof(kPairPalette) / sizeof(kPairPalette[0]);
 
 const char* kColorByNames[] = {"Material", "Aspect ratio", "Radius ratio",
                                "Min dihedral angle", "Scaled Jacobian"};
+
+/// What a worker builds for a large mesh: its boundary and interface triangles (points compacted
+/// to the ones used, cell array "labels" = the side the triangle is coloured by) and the per-tet
+/// quality for metric colouring.
+struct SurfaceJob {
+  std::shared_ptr<const femesher::TetMesh> mesh;
+  vtkSmartPointer<vtkPolyData> poly;
+  std::vector<std::array<int32_t, 2>> cellTets;
+  std::unique_ptr<femesher::TetQuality> quality;
+  std::string error;
+};
+
+void buildSurface(SurfaceJob& job) {
+  try {
+    const femesher::TetMesh& m = *job.mesh;
+    const std::vector<femesher::InterfaceTriangle> tris = femesher::extractInterfaces(m);
+    std::vector<vtkIdType> index(m.points.size(), -1);
+    auto pts = vtkSmartPointer<vtkPoints>::New();
+    pts->SetDataTypeToDouble();
+    auto polys = vtkSmartPointer<vtkCellArray>::New();
+    auto labels = vtkSmartPointer<vtkIntArray>::New();
+    labels->SetName("labels");
+    labels->SetNumberOfTuples(vtkIdType(tris.size()));
+    job.cellTets.resize(tris.size());
+    for (size_t i = 0; i < tris.size(); ++i) {
+      const femesher::InterfaceTriangle& t = tris[i];
+      vtkIdType ids[3];
+      for (int k = 0; k < 3; ++k) {
+        vtkIdType& id = index[size_t(t.v[size_t(k)])];
+        if (id < 0) {
+          const femesher::Vec3& p = m.points[size_t(t.v[size_t(k)])];
+          id = pts->InsertNextPoint(p[0], p[1], p[2]);
+        }
+        ids[k] = id;
+      }
+      polys->InsertNextCell(3, ids);
+      // Colour an interface by its higher label (inner structures are usually numbered later).
+      const bool useB = t.tetB >= 0;
+      labels->SetValue(vtkIdType(i), useB ? t.labelB : t.labelA);
+      job.cellTets[i] = {{useB ? t.tetB : t.tetA, useB ? t.tetA : t.tetB}};
+    }
+    job.poly = vtkSmartPointer<vtkPolyData>::New();
+    job.poly->SetPoints(pts);
+    job.poly->SetPolys(polys);
+    job.poly->GetCellData()->AddArray(labels);
+    job.quality = std::make_unique<femesher::TetQuality>(femesher::computeTetQuality(m));
+  } catch (const std::exception& e) {
+    job.error = e.what();
+  }
+}
+
+/// What a worker builds when a label map is opened: the surfaces of its labels
+/// (vtkDiscreteFlyingEdges3D on the map, every `stride`-th voxel of a large one), in LPS mm, with
+/// each point coloured by its label.
+struct InputJob {
+  vtkSmartPointer<vtkImageData> image;  ///< the (subsampled) labels, index frame
+  double affine[3][4] = {};             ///< image index -> LPS mm
+  std::vector<std::pair<int32_t, std::array<unsigned char, 3>>> colors;
+  vtkSmartPointer<vtkPolyData> poly;
+};
+
+void buildInputSurface(InputJob& job) {
+  auto fe = vtkSmartPointer<vtkDiscreteFlyingEdges3D>::New();
+  fe->SetInputData(job.image);
+  for (size_t i = 0; i < job.colors.size(); ++i) fe->SetValue(int(i), job.colors[i].first);
+  fe->ComputeScalarsOn();
+  fe->ComputeNormalsOff();
+  fe->ComputeGradientsOff();
+  fe->Update();
+  job.poly = vtkSmartPointer<vtkPolyData>::New();
+  job.poly->ShallowCopy(fe->GetOutput());
+  vtkPoints* pts = job.poly->GetPoints();
+  vtkDataArray* scalars = job.poly->GetPointData()->GetScalars();
+  auto rgb = vtkSmartPointer<vtkUnsignedCharArray>::New();
+  rgb->SetName("colors");
+  rgb->SetNumberOfComponents(3);
+  const vtkIdType n = pts ? pts->GetNumberOfPoints() : 0;
+  rgb->SetNumberOfTuples(n);
+  for (vtkIdType i = 0; i < n; ++i) {
+    double x[3], y[3];
+    pts->GetPoint(i, x);
+    for (int r = 0; r < 3; ++r)
+      y[r] = job.affine[r][0] * x[0] + job.affine[r][1] * x[1] + job.affine[r][2] * x[2] + job.affine[r][3];
+    pts->SetPoint(i, y);
+    const int32_t label = scalars ? int32_t(std::lround(scalars->GetTuple1(i))) : 0;
+    std::array<unsigned char, 3> c{{200, 200, 200}};
+    for (const auto& [id, color] : job.colors)
+      if (id == label) c = color;
+    rgb->SetTypedTuple(i, c.data());
+  }
+  job.poly->GetPointData()->SetScalars(rgb);
+}
 
 vtkSmartPointer<vtkPolyData> legendSymbol() {
   auto s = vtkSmartPointer<vtkSphereSource>::New();
@@ -142,6 +242,7 @@ qFEMesherPreviewView::qFEMesherPreviewView(QWidget* parent) : QWidget(parent) {
 
   // Final mesh: grid -> (optional) plane extraction keeping whole cells -> outer faces.
   grid_ = vtkSmartPointer<vtkUnstructuredGrid>::New();
+  shown_ = grid_;
   plane_ = vtkSmartPointer<vtkPlane>::New();
   extract_ = vtkSmartPointer<vtkExtractGeometry>::New();
   extract_->SetInputData(grid_);
@@ -160,6 +261,37 @@ qFEMesherPreviewView::qFEMesherPreviewView(QWidget* parent) : QWidget(parent) {
   meshActor_->GetProperty()->SetLineWidth(0.6f);
   meshActor_->VisibilityOff();
   renderer_->AddActor(meshActor_);
+
+  // The opened label map: its label surfaces, shown until a run draws something else.
+  inputSurface_ = vtkSmartPointer<vtkPolyData>::New();
+  auto inputMapper = vtkSmartPointer<vtkPolyDataMapper>::New();
+  inputMapper->SetInputData(inputSurface_);
+  inputMapper->SetColorModeToDirectScalars();
+  inputMapper->SetScalarModeToUsePointData();
+  inputActor_ = vtkSmartPointer<vtkActor>::New();
+  inputActor_->SetMapper(inputMapper);
+  inputActor_->VisibilityOff();
+  renderer_->AddActor(inputActor_);
+
+  // The tet asked for by showElement(): its edges in yellow, drawn over the surfaces.
+  highlight_ = vtkSmartPointer<vtkPolyData>::New();
+  auto highlightMapper = vtkSmartPointer<vtkPolyDataMapper>::New();
+  highlightMapper->SetInputData(highlight_);
+  highlightMapper->SetResolveCoincidentTopologyToPolygonOffset();
+  highlightActor_ = vtkSmartPointer<vtkActor>::New();
+  highlightActor_->SetMapper(highlightMapper);
+  highlightActor_->GetProperty()->SetColor(1.0, 0.9, 0.0);
+  highlightActor_->GetProperty()->SetLineWidth(4.0f);
+  highlightActor_->GetProperty()->LightingOff();
+  highlightActor_->VisibilityOff();
+  // Drawn by a second renderer on top of the scene (same camera), so the tet shows through.
+  overlay_ = vtkSmartPointer<vtkRenderer>::New();
+  overlay_->SetLayer(1);
+  overlay_->SetActiveCamera(renderer_->GetActiveCamera());
+  overlay_->InteractiveOff();
+  renderWindow_->SetNumberOfLayers(2);
+  renderWindow_->AddRenderer(overlay_);
+  overlay_->AddActor(highlightActor_);
 
   outline_ = vtkSmartPointer<vtkOutlineSource>::New();
   auto outlineMapper = vtkSmartPointer<vtkPolyDataMapper>::New();
@@ -201,12 +333,34 @@ qFEMesherPreviewView::qFEMesherPreviewView(QWidget* parent) : QWidget(parent) {
   renderer_->AddActor2D(text_);
   setStatusText(tr("Open a label map, then press Run."));
 
+  // Orientation axes in the lower left corner (LPS: x = left, y = posterior, z = superior).
+  auto axes = vtkSmartPointer<vtkAxesActor>::New();
+  axes->SetXAxisLabelText("L");
+  axes->SetYAxisLabelText("P");
+  axes->SetZAxisLabelText("S");
+  for (vtkCaptionActor2D* c : {axes->GetXAxisCaptionActor2D(), axes->GetYAxisCaptionActor2D(),
+                               axes->GetZAxisCaptionActor2D()})
+    c->GetCaptionTextProperty()->ShadowOff();
+  if (vtkRenderWindowInteractor* interactor = renderWindow_->GetInteractor()) {
+    axesWidget_ = vtkSmartPointer<vtkOrientationMarkerWidget>::New();
+    axesWidget_->SetOrientationMarker(axes);
+    axesWidget_->SetInteractor(interactor);
+    axesWidget_->SetViewport(0.0, 0.06, 0.16, 0.26);
+    axesWidget_->SetEnabled(1);
+    axesWidget_->InteractiveOff();
+  }
+
   redrawTimer_ = new QTimer(this);
   redrawTimer_->setSingleShot(true);
   connect(redrawTimer_, &QTimer::timeout, this, &qFEMesherPreviewView::drawPendingSnapshot);
 }
 
-qFEMesherPreviewView::~qFEMesherPreviewView() = default;
+qFEMesherPreviewView::~qFEMesherPreviewView() {
+  for (QThread* t : workers_) {
+    t->wait();
+    delete t;
+  }
+}
 
 std::array<double, 3> qFEMesherPreviewView::materialColor(int32_t id) const {
   if (const femesher::Material* m = femesher::findMaterial(materials_, id)) return m->color;
@@ -248,6 +402,7 @@ void qFEMesherPreviewView::setVolume(const femesher::LabelVolume& volume) {
   outline_->SetBounds(bounds_);
   outlineActor_->VisibilityOn();
   content_ = Content::Volume;
+  startInputSurface(volume);
   resetCamera(bounds_);
   setStatusText(tr("%1 x %2 x %3 voxels, %4 materials. Press Run to mesh.")
                     .arg(volume.dims[0]).arg(volume.dims[1]).arg(volume.dims[2])
@@ -270,6 +425,18 @@ void qFEMesherPreviewView::clear() {
   pending_.reset();
   mesh_.reset();
   quality_.reset();
+  highlighted_ = -1;
+  highlightActor_->VisibilityOff();
+  ++meshGeneration_;
+  ++inputGeneration_;
+  preparingInput_ = false;
+  inputSurface_->Initialize();
+  inputActor_->VisibilityOff();
+  preparing_ = false;
+  surfaceOnly_ = false;
+  cellTets_.clear();
+  meshSurface_ = nullptr;
+  shown_ = grid_;
   points_->Initialize();
   surface_->Initialize();
   grid_->Initialize();
@@ -282,6 +449,66 @@ void qFEMesherPreviewView::clear() {
   content_ = Content::Empty;
   setStatusText(tr("Open a label map, then press Run."));
   renderNow();
+}
+
+void qFEMesherPreviewView::startInputSurface(const femesher::LabelVolume& volume) {
+  const int generation = ++inputGeneration_;
+  auto job = std::make_shared<InputJob>();
+  for (const auto& m : volume.materials) {
+    if (m.id == 0 && !volume.hasNoBackground()) continue;
+    const auto c = materialColor(m.id);
+    job->colors.push_back({m.id, {{static_cast<unsigned char>(255 * c[0]),
+                                   static_cast<unsigned char>(255 * c[1]),
+                                   static_cast<unsigned char>(255 * c[2])}}});
+  }
+  if (job->colors.empty() || volume.voxelCount() == 0) return;
+  // Every stride-th voxel of a large map (at most about kMaxInputVoxels), padded by one voxel
+  // of background so the surfaces close at the edges.
+  constexpr double kMaxInputVoxels = 4.0e6;
+  int stride = 1;
+  while (double(volume.voxelCount()) / double(stride * stride * stride) > kMaxInputVoxels) ++stride;
+  inputStride_ = stride;
+  int d[3];
+  for (int a = 0; a < 3; ++a) d[a] = (volume.dims[a] + stride - 1) / stride + 2;
+  auto image = vtkSmartPointer<vtkImageData>::New();
+  image->SetDimensions(d[0], d[1], d[2]);
+  auto values = vtkSmartPointer<vtkIntArray>::New();
+  values->SetNumberOfTuples(vtkIdType(d[0]) * d[1] * d[2]);
+  values->FillValue(volume.hasNoBackground() ? std::numeric_limits<int>::min() : 0);
+  for (int k = 0; k + 2 < d[2]; ++k)
+    for (int j = 0; j + 2 < d[1]; ++j)
+      for (int i = 0; i + 2 < d[0]; ++i)
+        values->SetValue(vtkIdType(i + 1) + vtkIdType(d[0]) * (vtkIdType(j + 1) + vtkIdType(d[1]) * (k + 1)),
+                         volume.at(i * stride, j * stride, k * stride));
+  image->GetPointData()->SetScalars(values);
+  job->image = image;
+  // Image index (i, j, k) is voxel ((i - 1) s, (j - 1) s, (k - 1) s): an affine map to LPS.
+  const femesher::Vec3 o = volume.indexToPhysical({{-double(stride), -double(stride), -double(stride)}});
+  for (int a = 0; a < 3; ++a) {
+    femesher::Vec3 e{{-double(stride), -double(stride), -double(stride)}};
+    e[size_t(a)] += stride;
+    const femesher::Vec3 p = volume.indexToPhysical(e);
+    for (int r = 0; r < 3; ++r) job->affine[r][a] = p[size_t(r)] - o[size_t(r)];
+  }
+  for (int r = 0; r < 3; ++r) job->affine[r][3] = o[size_t(r)];
+  preparingInput_ = true;
+  QThread* worker = QThread::create([job] { buildInputSurface(*job); });
+  workers_ << worker;
+  connect(worker, &QThread::finished, this, [this, worker, job, generation] {
+    workers_.removeOne(worker);
+    worker->deleteLater();
+    if (generation != inputGeneration_) return;
+    preparingInput_ = false;
+    inputSurface_->ShallowCopy(job->poly);
+    inputSurface_->Modified();
+    inputActor_->SetVisibility(content_ == Content::Volume);
+    renderNow();
+  });
+  worker->start(QThread::LowPriority);
+}
+
+size_t qFEMesherPreviewView::inputTriangleCount() const {
+  return size_t(inputSurface_->GetNumberOfPolys());
 }
 
 void qFEMesherPreviewView::resetCamera(const double b[6]) {
@@ -332,6 +559,8 @@ void qFEMesherPreviewView::drawPendingSnapshot() {
     pts->SetPoint(vtkIdType(i), s->points[i][0], s->points[i][1], s->points[i][2]);
 
   meshActor_->VisibilityOff();
+  inputActor_->VisibilityOff();
+  highlightActor_->VisibilityOff();
   scalarBar_->VisibilityOff();
   if (s->kind == "surface" && !s->triangles.empty()) {
     auto tris = vtkSmartPointer<vtkCellArray>::New();
@@ -410,19 +639,123 @@ void qFEMesherPreviewView::setMesh(std::shared_ptr<const femesher::TetMesh> mesh
   pending_.reset();
   mesh_ = std::move(mesh);
   quality_.reset();
+  const int generation = ++meshGeneration_;
+  preparing_ = false;
   if (!mesh_) return;
   for (const auto& m : mesh_->materials)
     if (!femesher::findMaterial(materials_, m.id)) materials_.push_back(m);
 
-  femesher::meshToVtkGrid(*mesh_, grid_);  // LPS, cell array "labels"
+  if (mesh_->tets.size() < surfaceThreshold_) {
+    surfaceOnly_ = false;
+    cellTets_.clear();
+    meshSurface_ = nullptr;
+    femesher::meshToVtkGrid(*mesh_, grid_);  // LPS, cell array "labels"
+    shown_ = grid_;
+    finishMesh();
+    return;
+  }
+  // Large: the surfaces and the quality are built off the GUI thread.
+  preparing_ = true;
+  auto job = std::make_shared<SurfaceJob>();
+  job->mesh = mesh_;
+  QThread* worker = QThread::create([job] { buildSurface(*job); });
+  workers_ << worker;
+  connect(worker, &QThread::finished, this, [this, worker, job, generation] {
+    workers_.removeOne(worker);
+    worker->deleteLater();
+    if (generation != meshGeneration_) return;  // another mesh came meanwhile
+    preparing_ = false;
+    if (!job->poly) {
+      setStatusText(tr("Cannot draw the mesh: %1").arg(QString::fromStdString(job->error)));
+      renderNow();
+      return;
+    }
+    surfaceOnly_ = true;
+    meshSurface_ = job->poly;
+    cellTets_ = std::move(job->cellTets);
+    quality_ = std::move(job->quality);
+    grid_->Initialize();
+    shown_ = meshSurface_;
+    finishMesh();
+  });
+  worker->start(QThread::LowPriority);
+  setStatusText(tr("Preparing the surfaces of the mesh (%1 tets)…").arg(mesh_->tets.size()));
+  renderNow();
+}
+
+void qFEMesherPreviewView::finishMesh() {
+  if (!quality_) quality_ = std::make_shared<const femesher::TetQuality>(femesher::computeTetQuality(*mesh_));
+  highlighted_ = -1;
+  highlightActor_->VisibilityOff();
   updateMeshColors();
   updateClipPlane();
   {  // frame the mesh (same viewing direction)
     double mb[6];
-    grid_->GetBounds(mb);
+    shown_->GetBounds(mb);
     renderer_->ResetCamera(mb);
     renderer_->GetActiveCamera()->Zoom(1.1);
   }
+  showMeshActors();
+  emit meshShown(mesh_, quality_);
+}
+
+bool qFEMesherPreviewView::showElement(size_t tet) {
+  if (!mesh_ || preparing_ || content_ != Content::Mesh || tet >= mesh_->tets.size()) return false;
+  const auto& t = mesh_->tets[tet];
+  auto pts = vtkSmartPointer<vtkPoints>::New();
+  double c[3] = {0, 0, 0}, minY = 1e300, longest = 0;
+  for (int k = 0; k < 4; ++k) {
+    const femesher::Vec3& p = mesh_->points[size_t(t[size_t(k)])];
+    pts->InsertNextPoint(p[0], p[1], p[2]);
+    for (int a = 0; a < 3; ++a) c[a] += 0.25 * p[size_t(a)];
+    minY = std::min(minY, p[1]);
+    for (int l = 0; l < k; ++l) {
+      const femesher::Vec3& q = mesh_->points[size_t(t[size_t(l)])];
+      longest = std::max(longest, std::sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) +
+                                            (p[2] - q[2]) * (p[2] - q[2])));
+    }
+  }
+  auto lines = vtkSmartPointer<vtkCellArray>::New();
+  for (int a = 0; a < 4; ++a)
+    for (int b = a + 1; b < 4; ++b) {
+      const vtkIdType e[2] = {a, b};
+      lines->InsertNextCell(2, e);
+    }
+  highlight_->Initialize();
+  highlight_->SetPoints(pts);
+  highlight_->SetLines(lines);
+  highlight_->Modified();
+  highlightActor_->VisibilityOn();
+  highlighted_ = (long long)tet;
+  // Cut just in front of the tet (it lies wholly on the kept, far side) and look at the cut face.
+  double b[6];
+  shown_->GetBounds(b);
+  const double span = b[3] > b[2] ? b[3] - b[2] : 1.0;
+  setClipping(true, 1, std::floor(100.0 * (minY - b[2]) / span) / 100.0);
+  vtkCamera* cam = renderer_->GetActiveCamera();
+  const double dist = std::max(12.0 * longest, 1e-3);
+  cam->SetFocalPoint(c);
+  cam->SetPosition(c[0] + 0.25 * dist, c[1] - dist, c[2] + 0.25 * dist);
+  cam->SetViewUp(0, 0, 1);
+  setStatusText(tr("Tet %1 (material %2)").arg(tet).arg(mesh_->tetLabels[tet]));
+  renderNow();
+  return true;
+}
+
+double qFEMesherPreviewView::cameraFocalPoint(int axis) const {
+  return renderer_->GetActiveCamera()->GetFocalPoint()[std::clamp(axis, 0, 2)];
+}
+
+bool qFEMesherPreviewView::restoreMesh() {
+  redrawTimer_->stop();
+  pending_.reset();
+  if (!mesh_) return false;
+  if (!preparing_) showMeshActors();  // else it shows once its surfaces are built
+  return true;
+}
+
+void qFEMesherPreviewView::showMeshActors() {
+  inputActor_->VisibilityOff();
   pointsActor_->VisibilityOff();
   surfaceActor_->VisibilityOff();
   meshActor_->VisibilityOn();
@@ -438,23 +771,26 @@ void qFEMesherPreviewView::setMesh(std::shared_ptr<const femesher::TetMesh> mesh
   }
   legend_->SetVisibility(colorBy() == ColorBy::Material && !mesh_->materials.empty());
   updateLegend();
-  setStatusText(tr("Mesh: %1 vertices, %2 tets, %3 materials")
-                    .arg(mesh_->points.size()).arg(mesh_->tets.size())
-                    .arg(mesh_->materials.size()));
+  QString status = tr("Mesh: %1 vertices, %2 tets, %3 materials")
+                       .arg(mesh_->points.size()).arg(mesh_->tets.size())
+                       .arg(mesh_->materials.size());
+  if (surfaceOnly_)
+    status += tr(" (drawn as %1 boundary and interface triangles)").arg(shown_->GetNumberOfCells());
+  setStatusText(status);
   renderNow();
 }
 
 size_t qFEMesherPreviewView::displayedCellCount() const {
   if (content_ != Content::Mesh) return 0;
-  vtkDataSet* in = isClipping() ? vtkDataSet::SafeDownCast(extract_->GetOutput())
-                                : static_cast<vtkDataSet*>(grid_.Get());
+  vtkDataSet* in = isClipping() ? vtkDataSet::SafeDownCast(extract_->GetOutput()) : shown_;
   return in ? size_t(in->GetNumberOfCells()) : 0;
 }
 
 void qFEMesherPreviewView::updateMeshColors() {
   if (!mesh_) return;
   const ColorBy mode = colorBy();
-  const vtkIdType n = vtkIdType(mesh_->tets.size());
+  if (preparing_) return;  // coloured once the surfaces are there
+  const vtkIdType n = shown_->GetNumberOfCells();
   if (mode == ColorBy::Material) {
     auto colors = vtkSmartPointer<vtkUnsignedCharArray>::New();
     colors->SetName("colors");
@@ -462,7 +798,7 @@ void qFEMesherPreviewView::updateMeshColors() {
     colors->SetNumberOfTuples(n);
     std::map<int32_t, std::array<unsigned char, 3>> cache;
     for (vtkIdType t = 0; t < n; ++t) {
-      const int32_t l = mesh_->tetLabels[size_t(t)];
+      const int32_t l = mesh_->tetLabels[cellTets_.empty() ? size_t(t) : size_t(cellTets_[size_t(t)][0])];
       auto it = cache.find(l);
       if (it == cache.end()) {
         const auto c = materialColor(l);
@@ -473,8 +809,8 @@ void qFEMesherPreviewView::updateMeshColors() {
       }
       colors->SetTypedTuple(t, it->second.data());
     }
-    grid_->GetCellData()->RemoveArray("colors");
-    grid_->GetCellData()->AddArray(colors);
+    shown_->GetCellData()->RemoveArray("colors");
+    shown_->GetCellData()->AddArray(colors);
     meshMapper_->SetColorModeToDirectScalars();
     meshMapper_->SelectColorArray("colors");
     meshMapper_->SetScalarModeToUseCellFieldData();
@@ -482,7 +818,7 @@ void qFEMesherPreviewView::updateMeshColors() {
     scalarBar_->VisibilityOff();
     legend_->SetVisibility(!mesh_->materials.empty());
   } else {
-    if (!quality_) quality_ = std::make_unique<femesher::TetQuality>(femesher::computeTetQuality(*mesh_));
+    if (!quality_) quality_ = std::make_shared<const femesher::TetQuality>(femesher::computeTetQuality(*mesh_));
     const std::vector<double>* values = nullptr;
     double lo = 0, hi = 1;
     bool highIsBad = true;
@@ -498,12 +834,12 @@ void qFEMesherPreviewView::updateMeshColors() {
     arr->SetName("metric");
     arr->SetNumberOfTuples(n);
     for (vtkIdType t = 0; t < n; ++t) {
-      double v = values && size_t(t) < values->size() ? (*values)[size_t(t)] : 0.0;
+      double v = values ? cellMetric(*values, size_t(t), highIsBad) : 0.0;
       if (!std::isfinite(v)) v = highIsBad ? hi : lo;
       arr->SetValue(t, v);
     }
-    grid_->GetCellData()->RemoveArray("metric");
-    grid_->GetCellData()->AddArray(arr);
+    shown_->GetCellData()->RemoveArray("metric");
+    shown_->GetCellData()->AddArray(arr);
     lut_->SetHueRange(highIsBad ? 0.667 : 0.0, highIsBad ? 0.0 : 0.667);
     lut_->SetTableRange(lo, hi);
     lut_->Build();
@@ -518,14 +854,27 @@ void qFEMesherPreviewView::updateMeshColors() {
     scalarBar_->VisibilityOn();
     legend_->VisibilityOff();
   }
-  grid_->Modified();
+  shown_->Modified();
+}
+
+double qFEMesherPreviewView::cellMetric(const std::vector<double>& values, size_t cell,
+                                        bool highIsBad) const {
+  auto at = [&](int32_t tet) {
+    return tet >= 0 && size_t(tet) < values.size() ? values[size_t(tet)]
+                                                   : std::numeric_limits<double>::quiet_NaN();
+  };
+  if (cellTets_.empty()) return at(int32_t(cell));
+  const double a = at(cellTets_[cell][0]), b = at(cellTets_[cell][1]);
+  if (!std::isfinite(b)) return a;
+  if (!std::isfinite(a)) return b;
+  return highIsBad ? std::max(a, b) : std::min(a, b);  // the worse side
 }
 
 void qFEMesherPreviewView::updateClipPlane() {
   const bool on = clipCheck_->isChecked();
   const int axis = clipAxis_->currentIndex();
   double b[6];
-  if (grid_->GetNumberOfPoints() > 0) grid_->GetBounds(b);
+  if (shown_->GetNumberOfPoints() > 0) shown_->GetBounds(b);
   else std::copy(bounds_, bounds_ + 6, b);
   const double f = clipSlider_->value() / 100.0;
   double origin[3] = {0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3]), 0.5 * (b[4] + b[5])};
@@ -536,8 +885,8 @@ void qFEMesherPreviewView::updateClipPlane() {
   plane_->SetNormal(normal);
   plane_->Modified();
   gridSurface_->SetInputConnection(on ? extract_->GetOutputPort() : nullptr);
-  if (!on) gridSurface_->SetInputData(grid_);
-  else extract_->SetInputData(grid_);
+  if (!on) gridSurface_->SetInputData(shown_);
+  else extract_->SetInputData(shown_);
 }
 
 void qFEMesherPreviewView::onControlsChanged() {
@@ -545,7 +894,7 @@ void qFEMesherPreviewView::onControlsChanged() {
   if (sender() == clipAxis_ && content_ == Content::Mesh) {
     // Look at the cut face: camera on the negative side of the chosen axis.
     double b[6];
-    grid_->GetBounds(b);
+    shown_->GetBounds(b);
     vtkCamera* cam = renderer_->GetActiveCamera();
     const double c[3] = {0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3]), 0.5 * (b[4] + b[5])};
     double pos[3] = {c[0] + 0.3, c[1] + 0.3, c[2] + 0.3};

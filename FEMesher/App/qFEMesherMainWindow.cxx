@@ -43,12 +43,8 @@ qFEMesherMainWindow::qFEMesherMainWindow(QWidget* parent) : QMainWindow(parent) 
   setWindowTitle(tr("FEMesher %1").arg(QStringLiteral(FEMESHER_VERSION)));
   setAcceptDrops(true);
 
-  panel_ = new qFEMesherPanelWidget;
-  auto* scroll = new QScrollArea;
-  scroll->setWidget(panel_);
-  scroll->setWidgetResizable(true);
-  scroll->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
-  scroll->setMinimumWidth(600);
+  panel_ = new qFEMesherPanelWidget;  // scrolls its own parameters; Run and Cancel stay visible
+  panel_->setMinimumWidth(600);
 
   view_ = new qFEMesherPreviewView;
   histograms_ = new qFEMesherQualityHistogramWidget;
@@ -60,7 +56,7 @@ qFEMesherMainWindow::qFEMesherMainWindow(QWidget* parent) : QMainWindow(parent) 
   right->setStretchFactor(1, 2);
   right->setSizes({600, 400});
   auto* split = new QSplitter(Qt::Horizontal);
-  split->addWidget(scroll);
+  split->addWidget(panel_);
   split->addWidget(right);
   split->setStretchFactor(0, 0);
   split->setStretchFactor(1, 1);
@@ -94,8 +90,9 @@ qFEMesherMainWindow::qFEMesherMainWindow(QWidget* parent) : QMainWindow(parent) 
             view_->setVolume(*v);
             histograms_->clear();
           });
+  // A new run keeps the previous result's histograms (the panel keeps its mesh for export) until
+  // it succeeds; the view shows the run's live preview meanwhile.
   connect(panel_, &qFEMesherPanelWidget::runStarted, this, [this] {
-    histograms_->clear();
     view_->setClipping(false);
     view_->setColorBy(qFEMesherPreviewView::ColorBy::Material);
     snapshotsDuringRun_ = 0;
@@ -106,6 +103,10 @@ qFEMesherMainWindow::qFEMesherMainWindow(QWidget* parent) : QMainWindow(parent) 
   connect(panel_, &qFEMesherPanelWidget::statusMessage, this,
           [this](const QString& m) { statusBar()->showMessage(m, 8000); });
   connect(view_, &qFEMesherPreviewView::snapshotDrawn, this, &qFEMesherMainWindow::onSnapshotDrawn);
+  connect(view_, &qFEMesherPreviewView::meshShown, histograms_,
+          &qFEMesherQualityHistogramWidget::setTetQuality);
+  connect(histograms_, &qFEMesherQualityHistogramWidget::showElementRequested, view_,
+          [this](long long tet) { view_->showElement(size_t(tet)); });
   statusBar()->showMessage(tr("Open a segmentation (File > Open, or drop a file here), or File > Open sample."));
 }
 
@@ -217,9 +218,10 @@ void qFEMesherMainWindow::closeEvent(QCloseEvent* event) {
 }
 
 void qFEMesherMainWindow::onRunSucceeded(std::shared_ptr<const femesher::PipelineResult> result) {
-  view_->setMesh(std::shared_ptr<const femesher::TetMesh>(result, &result->mesh));
+  // Reports first: the view's meshShown (at once for a small mesh) then adds the per-tet values.
   histograms_->setReports(result->quality, result->hasFidelity ? &result->fidelity : nullptr,
                           result->mesh.materials);
+  view_->setMesh(std::shared_ptr<const femesher::TetMesh>(result, &result->mesh));
 }
 
 // --- screenshots -----------------------------------------------------------------------------------
@@ -301,6 +303,8 @@ void qFEMesherMainWindow::onSnapshotDrawn(int points) {
 }
 
 void qFEMesherMainWindow::onRunEnded(const QString& state, const QString& message) {
+  // Canceled or failed: the previous mesh (still the panel's result) comes back into the view.
+  if (state != QLatin1String("succeeded") && panel_->result()) view_->restoreMesh();
   if (!scripting_) return;
   if (state != QLatin1String("succeeded")) {
     std::fprintf(stderr, "FEMesherApp: run %s: %s\n", state.toLocal8Bit().constData(),

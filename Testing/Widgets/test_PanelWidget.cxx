@@ -1,13 +1,16 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Drives the meshing panel (and the histogram widget wired to it) like a user: open a volume,
 // read the material table, change presets and parameters, save/load a parameter file (and give
-// it to the CLI), run, cancel mid-run, run to the end, exclude a material, export every format.
+// it to the CLI), run, cancel mid-run, run to the end, exclude a material, export every format,
+// cancel a second run and still export the first mesh; histograms (definitions, log volume, worst
+// tets) and the fidelity table's volume tolerance; a material renamed in the table.
 // Pure QWidgets: runs with QT_QPA_PLATFORM=offscreen.
 #include <qFEMesherPanelWidget.h>
 #include <qFEMesherQualityHistogramWidget.h>
 #include <qFEMesherRunner.h>
 
 #include <femesher/Phantom.h>
+#include <femesher/StageTable.h>
 #include <femesher/io/LabelMapIO.h>
 #include <femesher/io/MeshIO.h>
 
@@ -68,6 +71,14 @@ class PanelWidgetTest : public QObject {
             });
     panel_->resize(600, 1000);
     panel_->show();
+  }
+
+  void everyStageHasAHumanName() {
+    for (const StageInfo& s : stageTable()) {
+      const QString key = QString::fromLatin1(s.key);
+      const QString title = qFEMesherPanelWidget::stageTitle(key);
+      QVERIFY2(!title.isEmpty() && title != key && title.contains(QLatin1Char(' ')), s.key);
+    }
   }
 
   void beforeOpeningNothingRuns() {
@@ -234,10 +245,21 @@ class PanelWidgetTest : public QObject {
   void runToTheEndShowsQualityAndFidelity() {
     QVERIFY(panel_->applyPreset(QStringLiteral("default")));
     QSignalSpy succeeded(panel_.get(), &qFEMesherPanelWidget::runSucceeded);
+    QSignalSpy progress(panel_.get(), &qFEMesherPanelWidget::progressChanged);
     QVERIFY(panel_->run());
     QVERIFY(waitForEnd(300000));
     QCOMPARE(panel_->runState(), QStringLiteral("succeeded"));
     QCOMPARE(succeeded.count(), 1);
+    // Every stage the run reported (the runner forwards the latest per GUI tick, so fast stages
+    // may be skipped) is in the stage table and has a name in words in the progress bar.
+    QSet<QString> stages;
+    for (const auto& args : progress) stages.insert(args.at(0).toString());
+    QVERIFY(!stages.isEmpty());
+    for (const QString& stage : stages) {
+      QVERIFY2(findStage(stage.toStdString()), qPrintable(stage));
+      const QString title = qFEMesherPanelWidget::stageTitle(stage);
+      QVERIFY2(title != stage && title.contains(QLatin1Char(' ')), qPrintable(stage));
+    }
     auto r = panel_->result();
     QVERIFY(r);
     QVERIFY(r->mesh.tets.size() > 100);
@@ -296,6 +318,91 @@ class PanelWidgetTest : public QObject {
     QVERIFY(colours.size() > 10);
   }
 
+  void histogramsDefineMetricsAndFindTheWorst() {
+    auto r = panel_->result();
+    QVERIFY(r);
+    const auto mesh = std::shared_ptr<const TetMesh>(r, &r->mesh);
+    const auto q = std::make_shared<const TetQuality>(computeTetQuality(r->mesh));
+    histograms_->setTetQuality(mesh, q);
+    QCOMPARE(qFEMesherQualityHistogramWidget::plotCount(), 5);
+    QCOMPARE(histograms_->plot(4)->objectName(), QStringLiteral("scaled_jacobian"));
+    QCOMPARE(histograms_->plot(4)->totalCount(), r->mesh.tets.size());
+    // Definitions as tooltips.
+    const char* words[5] = {"longest edge", "circumradius", "70.5", "logarithmic", "Jacobian"};
+    for (int i = 0; i < 5; ++i) {
+      QVERIFY2(qFEMesherQualityHistogramWidget::metricDefinition(i).contains(QLatin1String(words[i])), words[i]);
+      QVERIFY(histograms_->plot(i)->toolTip().startsWith(qFEMesherQualityHistogramWidget::metricDefinition(i)));
+    }
+    // The dihedral axis ends at 90 degrees; volumes have log-spaced bins holding every tet.
+    QCOMPARE(histograms_->plot(2)->displayLow(), 0.0);
+    QCOMPARE(histograms_->plot(2)->displayHigh(), 90.0);
+    qFEMesherHistogramPlot* volume = histograms_->plot(3);
+    QVERIFY(volume->isLogScale());
+    QCOMPARE(volume->totalCount(), r->mesh.tets.size());
+    const auto& e = volume->histogram().edges;
+    QVERIFY(e.size() > 10);
+    QVERIFY(std::abs(std::log(e[2] / e[1]) - std::log(e[9] / e[8])) < 1e-9);
+    QVERIFY(e.back() / e.front() > 10);
+    // The worst tet of each metric, whole mesh and one material; the button asks for it.
+    auto check = [&](int32_t label) {
+      const std::vector<double>* values[5] = {&q->aspectRatio, &q->radiusRatio, &q->minDihedral,
+                                              &q->volume, &q->scaledJacobian};
+      const bool largestIsWorst[5] = {true, true, false, false, false};
+      for (int i = 0; i < 5; ++i) {
+        double worst = largestIsWorst[i] ? -1e300 : 1e300;
+        for (size_t t = 0; t < r->mesh.tets.size(); ++t)
+          if (label == kExteriorLabel || r->mesh.tetLabels[t] == label)
+            worst = largestIsWorst[i] ? std::max(worst, (*values[i])[t]) : std::min(worst, (*values[i])[t]);
+        const long long w = histograms_->worstElement(i);
+        QVERIFY(w >= 0);
+        QCOMPARE((*values[i])[size_t(w)], worst);
+        if (label != kExteriorLabel) QCOMPARE(r->mesh.tetLabels[size_t(w)], label);
+      }
+    };
+    check(kExteriorLabel);
+    QVERIFY(histograms_->selectMaterial(2));
+    check(2);
+    QSignalSpy asked(histograms_.get(), &qFEMesherQualityHistogramWidget::showElementRequested);
+    histograms_->worstButton(2)->click();
+    QCOMPARE(asked.count(), 1);
+    QCOMPARE(asked.at(0).at(0).toLongLong(), histograms_->worstElement(2));
+    QVERIFY(histograms_->selectMaterial(kExteriorLabel));
+  }
+
+  void fidelityFlagsAVolumeChangeAboveTheTolerance() {
+    auto r = panel_->result();
+    QVERIFY(r && r->hasFidelity);
+    QTableWidget* f = histograms_->fidelityTable();
+    for (int c = 0; c < f->columnCount(); ++c)
+      QVERIFY(!f->horizontalHeaderItem(c)->toolTip().isEmpty());
+    QVERIFY(f->horizontalHeaderItem(4)->toolTip().contains(QStringLiteral("amount only")));
+    QVERIFY(histograms_->fidelityNote()->text().contains(QStringLiteral("Dice")));
+    QDoubleSpinBox* tol = histograms_->volumeToleranceSpin();
+    QCOMPARE(tol->value(), 5.0);
+    // The label whose volume changed most; a tolerance below its change flags it (and only the
+    // labels beyond the tolerance), one above it says ok.
+    size_t worst = 0;
+    for (size_t i = 0; i < r->fidelity.materials.size(); ++i)
+      if (std::abs(r->fidelity.materials[i].volumeError) > std::abs(r->fidelity.materials[worst].volumeError))
+        worst = i;
+    const double change = 100.0 * std::abs(r->fidelity.materials[worst].volumeError);
+    QVERIFY2(change > 0.05, "no label changed volume: nothing to flag");
+    tol->setValue(std::max(0.01, change / 2));
+    for (int row = 0; row < f->rowCount(); ++row) {
+      const auto& m = r->fidelity.materials[size_t(row)];
+      const QString status = f->item(row, 5)->text();
+      if (m.dice < 0.8) continue;
+      if (100.0 * std::abs(m.volumeError) > tol->value())
+        QVERIFY2(status.startsWith(QStringLiteral("volume ")), qPrintable(status));
+      else
+        QCOMPARE(status, QStringLiteral("ok"));
+    }
+    QVERIFY(f->item(int(worst), 5)->text().startsWith(QStringLiteral("volume ")));
+    tol->setValue(change * 2 + 1);
+    QCOMPARE(f->item(int(worst), 5)->text(), QStringLiteral("ok"));
+    tol->setValue(5.0);
+  }
+
   void exportEveryFormat() {
     auto r = panel_->result();
     QVERIFY(r);
@@ -319,6 +426,55 @@ class PanelWidgetTest : public QObject {
     // An unknown extension is refused and nothing is written.
     QVERIFY(!panel_->exportMesh(tmpFile(QStringLiteral("mesh.xyz"))));
     QVERIFY(!QFileInfo::exists(tmpFile(QStringLiteral("mesh.xyz"))));
+  }
+
+  void cancelKeepsThePreviousResult() {
+    // Issue 15: a good mesh, then a second run canceled midway: the first mesh is still the
+    // result, exportable during and after the canceled run, and the export is that mesh.
+    auto first = panel_->result();
+    QVERIFY(first);
+    const QString before = tmpFile(QStringLiteral("first.mesh"));
+    QVERIFY2(panel_->exportMesh(before), qPrintable(panel_->lastError()));
+    QVERIFY(panel_->applyPreset(QStringLiteral("fine")));
+    spin("particle_iterations")->setValue(400);
+    QSignalSpy progress(panel_.get(), &qFEMesherPanelWidget::progressChanged);
+    QSignalSpy ended(panel_.get(), &qFEMesherPanelWidget::runEnded);
+    QVERIFY(panel_->run());
+    QCOMPARE(panel_->result().get(), first.get());
+    for (const QString& ext : panel_->exportExtensions())
+      QVERIFY2(panel_->exportButton(ext)->isEnabled(), qPrintable(ext));
+    QTRY_VERIFY_WITH_TIMEOUT(
+        [&] {
+          for (const auto& args : progress)
+            if (args.at(0).toString() == QLatin1String("ParticleSystem")) return true;
+          return false;
+        }(),
+        120000);
+    const QString during = tmpFile(QStringLiteral("during.mesh"));
+    QVERIFY2(panel_->exportMesh(during), qPrintable(panel_->lastError()));
+    panel_->cancel();
+    QVERIFY(waitForEnd(60000));
+    QCOMPARE(ended.count(), 1);
+    QCOMPARE(ended.at(0).at(0).toString(), QStringLiteral("canceled"));
+    QVERIFY2(ended.at(0).at(1).toString().contains(QStringLiteral("previous mesh")),
+             qPrintable(ended.at(0).at(1).toString()));
+    QCOMPARE(panel_->result().get(), first.get());
+    for (const QString& ext : panel_->exportExtensions())
+      QVERIFY2(panel_->exportButton(ext)->isEnabled(), qPrintable(ext));
+    const QString after = tmpFile(QStringLiteral("after.mesh"));
+    QVERIFY2(panel_->exportMesh(after), qPrintable(panel_->lastError()));
+    auto bytes = [](const QString& path) {
+      QFile f(path);
+      return f.open(QIODevice::ReadOnly) ? f.readAll() : QByteArray();
+    };
+    const QByteArray firstBytes = bytes(before);
+    QVERIFY(firstBytes.size() > 1000);
+    QVERIFY2(bytes(after) == firstBytes, "the export after the canceled run is not the first mesh");
+    QVERIFY2(bytes(during) == firstBytes, "the export during the run is not the first mesh");
+    auto back = readMesh(after.toStdString());
+    QVERIFY2(back.isOk(), back.status().message().c_str());
+    QCOMPARE(back->tets.size(), first->mesh.tets.size());
+    QVERIFY(panel_->applyPreset(QStringLiteral("default")));
   }
 
   void excludedMaterialIsNotMeshed() {
@@ -351,6 +507,13 @@ class PanelWidgetTest : public QObject {
     panel_->setMaterialExclusion(5, Exclusion::MergeIntoNeighbour);
     panel_->setMaterialIncluded(4, false);
     panel_->setMaterialExclusion(4, Exclusion::Background);
+    // A material renamed in the table: material.2.name, in the mesh and the parameter file.
+    QTableWidgetItem* name2 = panel_->materialTable()->item(panel_->materialRow(2), qFEMesherPanelWidget::ColName);
+    QVERIFY(name2->flags() & Qt::ItemIsEditable);
+    const QString mapName = name2->text();
+    name2->setText(QStringLiteral("spongy bone"));
+    QCOMPARE(panel_->parameters().preprocess.names.at(2), std::string("spongy bone"));
+    QCOMPARE(panel_->parameters().preprocess.names.count(1), size_t(0));
     const QString params = tmpFile(QStringLiteral("excluded.json"));
     QVERIFY2(panel_->saveParametersFile(params), qPrintable(panel_->lastError()));
     QVERIFY(panel_->run());
@@ -359,6 +522,9 @@ class PanelWidgetTest : public QObject {
     std::set<int32_t> labels(panel_->result()->mesh.tetLabels.begin(),
                              panel_->result()->mesh.tetLabels.end());
     QCOMPARE(labels, (std::set<int32_t>{1, 2, 3}));
+    const Material* renamed = findMaterial(panel_->result()->mesh.materials, 2);
+    QVERIFY(renamed);
+    QCOMPARE(renamed->name, std::string("spongy bone"));
     bool mergedNamed = false;
     for (const auto& w : panel_->result()->warnings)
       mergedNamed |= w.find("merged into its neighbours") != std::string::npos;
@@ -384,6 +550,10 @@ class PanelWidgetTest : public QObject {
     QVERIFY(!panel_->isMaterialIncluded(4) && !panel_->isMaterialIncluded(5));
     QVERIFY(panel_->materialExclusion(5) == Exclusion::MergeIntoNeighbour);
     QVERIFY(panel_->materialExclusion(4) == Exclusion::Background);
+    QCOMPARE(name2->text(), QStringLiteral("spongy bone"));
+    panel_->setParameters(MeshingParameters{});
+    QCOMPARE(name2->text(), mapName);  // no name given: the label map's
+    QVERIFY(panel_->parameters().preprocess.names.empty());
     panel_->setMaterialIncluded(4, true);
     panel_->setMaterialIncluded(5, true);
   }
