@@ -268,7 +268,10 @@ for extra, key, want in [
         (("--target_edge_length", "1.5"), "target_edge_length", 1.5),
         (("--target-edge-length", "1.5"), "target_edge_length", 1.5),
         (("--default_E", "2000"), "default.E", 2000),
-        (("--min_voxels", "1e+06"), "min_voxels", 1000000)]:
+        (("--min_voxels", "1e+06"), "min_voxels", 1000000),
+        (("--contact_pairs", "4:1"), "contact_pairs", "4:1"),
+        (("--contact-pairs", " 4:1 , 2:5"), "contact_pairs", "4:1,2:5"),
+        (("--set", "contact_pairs=4:1", "--contact_pairs", ""), "contact_pairs", "")]:
     r, p = saved(*extra)
     check(p is not None and p.get(key) == want,
           "%s -> %s = %s (%s)" % (" ".join(extra), key, want, r.stderr.strip()[-200:] or (p or {}).get(key)))
@@ -281,6 +284,13 @@ check(r.returncode == 2 and "contradict" in r.stderr,
       "--voxel-refinement true with --no-voxel-refinement: exit 2, says they contradict (%s)" % r.stderr.strip()[-200:])
 r, _ = saved("--voxel-refinement", "maybe")
 check(r.returncode == 2, "--voxel-refinement maybe: exit 2 (%d %s)" % (r.returncode, r.stderr.strip()[-200:]))
+r, _ = saved("--contact_pairs", "4-1")
+check(r.returncode == 2 and "contact_pairs" in r.stderr and "A:B" in r.stderr,
+      "--contact_pairs 4-1: exit 2 saying how to write pairs (%s)" % r.stderr.strip()[-200:])
+bad_out = os.path.join(TMP, "bad_pair.vtu")
+r = run("mesh", phantom, "-o", bad_out, "--contact_pairs", "4:9", "-q")
+check(r.returncode == 2 and "no label 9" in r.stderr and not os.path.exists(bad_out),
+      "--contact_pairs 4:9: exit 2 naming the label the phantom lacks (%s)" % r.stderr.strip()[-200:])
 r, _ = saved("--min_voxels", "2000000")
 check(r.returncode == 2 and "min_voxels" in r.stderr and "1000000" in r.stderr,
       "min_voxels above its range: exit 2 naming the range (%s)" % r.stderr.strip()[-200:])

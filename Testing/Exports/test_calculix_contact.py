@@ -45,6 +45,8 @@ check(re.search(r"^\*SURFACE INTERACTION, NAME=SI_4_1\n\*SURFACE BEHAVIOR, PRESS
 check(re.search(r"^\*CONTACT PAIR, INTERACTION=SI_4_1, TYPE=SURFACE TO SURFACE\nCONTACT_4_1_S, CONTACT_4_1_M\n",
                 inp, re.M) is not None, "INP: *CONTACT PAIR, dependent (cartilage) surface first")
 check(re.search(r"^\*SURFACE, NAME=IF_1_4,", inp, re.M) is None, "INP: no tied IF_1_4 surface is left")
+check(report.get("box_node_sets") == {} and "NSET=BOX_" not in inp,
+      "the phantom does not reach its box: no BOX_ node sets (report %s)" % report.get("box_node_sets"))
 
 # Parse nodes, elements with their label, and the two contact surfaces.
 nodes, elements, label_of, surfaces = {}, {}, {}, {}
