@@ -1,16 +1,22 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // ContactSplit: splitting chosen material interfaces into two coincident surfaces with their own
 // nodes, and the node sets of the scan box's faces, on generated Kuhn cube-grid meshes.
+#include <femesher/Parameters.h>
 #include <femesher/Status.h>
 #include <femesher/io/ContactSplit.h>
+#include <femesher/io/MeshIO.h>
 
 #include "TestShapes.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <map>
+#include <regex>
 #include <set>
+#include <sstream>
 
 using namespace femesher;
 
@@ -67,6 +73,29 @@ void expectCoincidentSides(const TetMesh& m, const ContactSurfacePair& cp) {
   for (size_t t = 0; t < m.tets.size(); ++t) EXPECT_GT(m.tetVolume(t), 0);
 }
 
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+/// Data lines after the line `header` up to the next keyword line.
+size_t dataLinesAfter(const std::string& text, const std::string& header) {
+  const auto at = text.find(header + "\n");
+  if (at == std::string::npos) return 0;
+  std::istringstream in(text.substr(at + header.size() + 1));
+  size_t n = 0;
+  for (std::string line; std::getline(in, line) && !line.empty() && line[0] != '*';) ++n;
+  return n;
+}
+
+size_t count(const std::string& text, const std::string& what) {
+  size_t n = 0;
+  for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
 }  // namespace
 
 TEST(ContactSplit, ParsesPairs) {
@@ -78,6 +107,15 @@ TEST(ContactSplit, ParsesPairs) {
   EXPECT_TRUE(parseContactPairs("").empty());
   for (const char* bad : {"2", "2:", "a:b", "2:2", "2:4,4:2", "2:4,", "2;4"})
     EXPECT_THROW(parseContactPairs(bad), Error) << bad;
+  // The parameter: --set text, its JSON round trip, a bad value refused with InvalidArgument.
+  MeshingParameters params;
+  ASSERT_TRUE(setParameter(params, "contact_pairs", "2:4, 6:5").isOk());
+  EXPECT_EQ(getParameter(params, "contact_pairs"), "2:4,6:5");
+  const auto back = parametersFromJson(parametersToJson(params));
+  ASSERT_TRUE(bool(back));
+  EXPECT_EQ(back.value().contactPairs, params.contactPairs);
+  EXPECT_EQ(setParameter(params, "contact_pairs", "2:x").code(), ErrorCode::InvalidArgument);
+  EXPECT_EQ(params.contactPairs.size(), 2u) << "a refused value leaves the pairs alone";
 }
 
 TEST(ContactSplit, TwoBoxesTouchingGetTwoSurfacesWithTheirOwnNodes) {
@@ -209,4 +247,69 @@ TEST(ContactSplit, BoxFaceNodeSetsInTheImageAxesOfAnObliqueImage) {
     const double plane = ns.name.substr(5) == "MIN" ? -0.5 : 3.5;
     for (int32_t v : ns.nodes) EXPECT_NEAR(g.physicalToIndex(m.points[size_t(v)])[axis], plane, 1e-9);
   }
+}
+
+TEST(ContactSplit, DecksCarryTheContactPairAndTheNodeSets) {
+  // Two boxes split on x = 2, written as .inp and .feb with a node set, in both element orders.
+  TetMesh m = test::cubeGridMesh(4, 1.0, {0, 0, 0}, [](const Vec3& g) { return g[0] < 2 ? 1 : 2; });
+  ExportOptions o;
+  o.contacts = splitContactInterfaces(m, {{2, 1}});
+  NamedNodeSet xmin{"BOX_XMIN", {}};
+  for (size_t i = 0; i < m.points.size(); ++i)
+    if (m.points[i][0] == 0) xmin.nodes.push_back(int32_t(i));
+  ASSERT_EQ(xmin.nodes.size(), 25u);
+  o.nodeSets = {xmin};
+  const auto dir = std::filesystem::path(FEMESHER_TEST_TMP_DIR) / "ContactSplit";
+  std::filesystem::create_directories(dir);
+  for (int order : {1, 2}) {
+    o.elementOrder = order;
+    const std::string inp = (dir / ("boxes" + std::to_string(order) + ".inp")).string();
+    const std::string feb = (dir / ("boxes" + std::to_string(order) + ".feb")).string();
+    ASSERT_TRUE(writeMesh(m, inp, o).isOk()) << order;
+    ASSERT_TRUE(writeMesh(m, feb, o).isOk()) << order;
+    const std::string a = slurp(inp), f = slurp(feb);
+    EXPECT_EQ(dataLinesAfter(a, "*SURFACE, NAME=CONTACT_2_1_S, TYPE=ELEMENT"), 32u);
+    EXPECT_EQ(dataLinesAfter(a, "*SURFACE, NAME=CONTACT_2_1_M, TYPE=ELEMENT"), 32u);
+    EXPECT_NE(a.find("*SURFACE INTERACTION, NAME=SI_2_1\n*SURFACE BEHAVIOR, "
+                     "PRESSURE-OVERCLOSURE=LINEAR\n"),
+              std::string::npos);
+    EXPECT_NE(a.find("*CONTACT PAIR, INTERACTION=SI_2_1, TYPE=SURFACE TO SURFACE\n"
+                     "CONTACT_2_1_S, CONTACT_2_1_M\n"),
+              std::string::npos);
+    // 25 corners; with order 2 also the mid-edge nodes of the face's 56 edges (40 grid edges, 16
+    // diagonals).
+    size_t ids = 0;
+    {
+      const auto at = a.find("*NSET, NSET=BOX_XMIN\n");
+      ASSERT_NE(at, std::string::npos);
+      std::istringstream in(a.substr(at + 21));
+      for (std::string line; std::getline(in, line) && !line.empty() && line[0] != '*';) ids += count(line, ",") + 1;
+    }
+    EXPECT_EQ(ids, order == 1 ? 25u : 25u + 56u) << order;
+    // FEBio: the two Surfaces (tri3 or tri6), the pair, the contact, the node set.
+    const char* tri = order == 1 ? "<tri3 " : "<tri6 ";
+    for (const char* side : {"label_2", "label_1"}) {
+      const std::string open = "<Surface name=\"contact__label_2__label_1__" + std::string(side) + "\">";
+      const auto at = f.find(open);
+      ASSERT_NE(at, std::string::npos) << side;
+      EXPECT_EQ(count(f.substr(at, f.find("</Surface>", at) - at), tri), 32u) << side << order;
+    }
+    EXPECT_NE(f.find("<SurfacePair name=\"contact__label_2__label_1\">\n\t\t\t<primary>contact__label_2__"
+                     "label_1__label_2</primary>\n\t\t\t<secondary>contact__label_2__label_1__label_1"
+                     "</secondary>"),
+              std::string::npos);
+    EXPECT_NE(f.find("<contact type=\"sliding-elastic\" name=\"contact__label_2__label_1\" "
+                     "surface_pair=\"contact__label_2__label_1\">"),
+              std::string::npos);
+    EXPECT_NE(f.find("<NodeSet name=\"BOX_XMIN\">"), std::string::npos);
+  }
+  // Tables that do not belong to the mesh are refused.
+  ExportOptions bad = o;
+  bad.elementOrder = 1;
+  bad.contacts[0].facesA[0].tet = int32_t(m.tets.size());
+  EXPECT_FALSE(writeMesh(m, (dir / "bad.inp").string(), bad).isOk());
+  bad = o;
+  bad.elementOrder = 1;
+  bad.nodeSets[0].nodes.push_back(int32_t(m.points.size()));
+  EXPECT_FALSE(writeMesh(m, (dir / "bad.feb").string(), bad).isOk());
 }

@@ -20,6 +20,8 @@
 ///  - .stl  ASCII STL: one `solid` per interface (outward from the lower label).
 ///  - .vtk  legacy VTK (binary, Slicer's "SPACE=LPS" header, which Slicer reads): cell array
 ///          `labels`, no field data.
+/// .inp and .feb also write `ExportOptions::contacts` (split interfaces as contact pairs) and
+/// `ExportOptions::nodeSets` (the box-face node sets); see ExportOptions.
 /// All writers are atomic (temporary file + rename). Coordinates are written in LPS mm.
 /// With `ExportOptions::elementOrder` = 2 the .inp, .msh, .vtu, .vtk and .feb writers write
 /// 10-node tets (QuadraticTets.h: one straight-edge midpoint node per unique edge, node order of
