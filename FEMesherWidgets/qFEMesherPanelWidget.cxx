@@ -199,6 +199,12 @@ QWidget* qFEMesherPanelWidget::makeParameterEditor(const femesher::ParameterDesc
             &qFEMesherPanelWidget::onParameterEdited);
     return combo;
   }
+  if (d.type == "string") {  // free text, checked when the run starts (contact_pairs)
+    auto* edit = new QLineEdit(owner);
+    edit->setPlaceholderText(tr("none"));
+    connect(edit, &QLineEdit::editingFinished, this, &qFEMesherPanelWidget::onParameterEdited);
+    return edit;
+  }
   if (d.defaultValue.find('e') != std::string::npos) {
     // Tiny values (density 1e-9): plain text with a validator.
     auto* edit = new QLineEdit(owner);
@@ -535,7 +541,8 @@ femesher::MeshingParameters qFEMesherPanelWidget::parameters() const {
   femesher::MeshingParameters p = hidden_;
   for (const auto& d : femesher::parameterDescriptors()) {
     const std::string v = editorValue(d.key);
-    if (!v.empty()) femesher::setParameter(p, d.key, v);  // invalid text keeps the old value
+    // Invalid text keeps the old value; an empty text field (contact_pairs) means none.
+    if (!v.empty() || d.type == "string") femesher::setParameter(p, d.key, v);
   }
   p.materialProperties.clear();
   for (int r = 0; r < table_->rowCount(); ++r) {
@@ -871,6 +878,8 @@ bool qFEMesherPanelWidget::exportMesh(const QString& path) {
   }
   femesher::ExportOptions options = femesher::exportOptionsFrom(parameters());
   options.provenance = "FEMesher panel; input " + inputPath_.toStdString();
+  options.contacts = result_->contacts;
+  options.nodeSets = result_->boxNodeSets;
   const femesher::Status s = femesher::writeMesh(result_->mesh, path.toStdString(), options);
   if (!s) {
     showError(QString::fromStdString(s.message()));

@@ -75,6 +75,9 @@ void writeParameter(std::ostringstream& x, const ParameterDescriptor& d) {
     tag = "integer";
   } else if (d.type == "double") {
     tag = "double";
+  } else if (d.type == "string") {
+    tag = "string";  // free text; Slicer passes it only when the field is not empty
+    def = xmlEscape(d.defaultValue);
   } else {
     throw std::logic_error("slicerXml: parameter '" + d.key + "' has unknown type " + d.type);
   }

@@ -286,6 +286,11 @@ std::string runSummary(const PipelineResult& r, const std::vector<std::string>& 
                   r.fidelity.meshToLabels.p99, r.fidelity.labelsToMesh.p99, r.fidelity.voxelSize);
     add("Boundary p99", line);
   }
+  for (const auto& c : r.contacts) {
+    std::snprintf(line, sizeof line, "%d:%d split, %zu interface triangles, %zu nodes duplicated",
+                  c.labelA, c.labelB, c.facesA.size(), c.duplicatedNodes);
+    add("Contact pair", line);
+  }
   std::string files;
   for (const auto& f : written) files += (files.empty() ? "" : ", ") + f;
   if (!files.empty()) add("Wrote", files);
@@ -297,6 +302,8 @@ int writeRunOutputs(const PipelineResult& result, const MeshingParameters& param
                     const MeshOptions& o, const std::string& source, cli::CliProgress& progress) {
   ExportOptions eo = exportOptionsFrom(params);
   eo.provenance = "femesher " FEMESHER_VERSION " from " + source;
+  eo.contacts = result.contacts;
+  eo.nodeSets = result.boxNodeSets;
   std::vector<std::string> exportWarnings;
   for (const auto& out : o.outputs) {
     if (Status s = writeMesh(result.mesh, out, eo); !s) {

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/MeshingRun.h>
+#include <femesher/io/ContactSplit.h>
 #include <femesher/stages/InterfaceSmoothing.h>
 
 #include <algorithm>
@@ -66,6 +67,8 @@ MeshingRun::MeshingRun(const LabelVolume& input, const MeshingParameters& params
     if (Status s = checkMaterialLabels(params_, {labels.begin(), labels.end()}, input_.sourcePath); !s)
       throw Error(s.code(), s.message());
   }
+  // Contact pairs of absent labels, or of labels that do not touch, are a mistake too.
+  if (Status s = checkContactPairs(params_.contactPairs, input_); !s) throw Error(s.code(), s.message());
   if (params_.run.threads > 0) ctx_.setThreads(params_.run.threads);
   ctx_.setStagePlan(pipelineStagePlan(params_));
 }
@@ -288,6 +291,11 @@ void MeshingRun::quality() { state_.quality = computeQuality(state_.mesh, ctx_);
 void MeshingRun::fidelity() {
   state_.fidelity = computeFidelity(input_, state_.mesh, ctx_);
   state_.hasFidelity = true;
+}
+
+void MeshingRun::prepareExport() {
+  state_.contacts = splitContactInterfaces(state_.mesh, params_.contactPairs);
+  state_.boxNodeSets = boxFaceNodeSets(state_.mesh, input_);
 }
 
 ReportCounts MeshingRun::reportCounts() const {

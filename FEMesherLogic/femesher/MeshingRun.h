@@ -16,6 +16,7 @@
 #include <femesher/RunContext.h>
 #include <femesher/StageTable.h>
 #include <femesher/Types.h>
+#include <femesher/io/ContactSplit.h>
 #include <femesher/stages/BoundaryMesh.h>
 #include <femesher/stages/Fidelity.h>
 #include <femesher/stages/IndicatorFunctions.h>
@@ -65,6 +66,10 @@ struct MeshingState {
   QualityReport quality;                        ///< Quality
   FidelityReport fidelity;                      ///< Fidelity
   bool hasFidelity = false;
+  /// prepareExport: the split contact pairs (parameter contact_pairs) and the mesh nodes on the
+  /// faces of the input's box (io/ContactSplit.h).
+  std::vector<ContactSurfacePair> contacts;
+  std::vector<NamedNodeSet> boxNodeSets;
   std::vector<StageTiming> timings;             ///< wall seconds per stage run, in run order
 };
 
@@ -101,6 +106,13 @@ class MeshingRun {
   /// An image header for the working grid placed in the input's physical space (what
   /// `femesher sizing` and `femesher medial-axis` write on). Requires LabelPreprocess to have run.
   LabelVolume workingGridGeometry() const { return state_.grid.geometryIn(input_); }
+
+  /// After the last stage, on the final linear mesh: splits the interfaces of the parameter
+  /// `contact_pairs` (`splitContactInterfaces`: duplicates nodes of `state().mesh`) and finds the
+  /// nodes on the faces of the input's box (`boxFaceNodeSets`, copies included), into
+  /// `state().contacts` and `state().boxNodeSets`. Quality and Fidelity are measured before (the
+  /// split moves nothing). Throws InvalidArgument for a pair the mesh has no interface of.
+  void prepareExport();
 
   /// Every stage result's counts, in report order.
   ReportCounts reportCounts() const;

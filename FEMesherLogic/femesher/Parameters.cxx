@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/Parameters.h>
 #include <femesher/Spelling.h>
+#include <femesher/io/ContactSplit.h>
 
 #include <nlohmann/json.hpp>
 
@@ -281,6 +282,19 @@ ParameterDescriptor surfaceMesherDescriptor() {
   return d;
 }
 
+ParameterDescriptor contactPairsDescriptor() {
+  ParameterDescriptor d;
+  d.key = "contact_pairs";
+  d.type = "string";
+  d.label = "Contact pairs";
+  d.help = "Material pairs whose interface becomes two coincident surfaces with their own nodes, "
+           "written as a contact pair in .inp (*CONTACT PAIR) and .feb (sliding-elastic contact): "
+           "label pairs A:B separated by commas, e.g. 2:4,6:5 (A is the dependent side). Empty: "
+           "every interface stays tied.";
+  d.advanced = true;
+  return d;
+}
+
 const Binding* findBinding(const std::string& key) {
   for (const auto& b : bindings())
     if (b.desc.key == key) return &b;
@@ -400,6 +414,7 @@ const std::vector<ParameterDescriptor>& parameterDescriptors() {
     for (const auto& b : bindings()) v.push_back(b.desc);
     v.push_back(sizingDescriptor());
     v.push_back(surfaceMesherDescriptor());
+    v.push_back(contactPairsDescriptor());
     return v;
   }();
   return d;
@@ -422,10 +437,18 @@ Status setParameter(MeshingParameters& params, const std::string& key, const std
         value == "ldt" ? SurfaceMesher::LocalDelaunay : SurfaceMesher::RestrictedDelaunay;
     return Status::ok();
   }
+  if (key == "contact_pairs") {
+    try {
+      params.contactPairs = parseContactPairs(value);
+    } catch (const Error& e) {
+      return e.status();
+    }
+    return Status::ok();
+  }
   const Binding* b = findBinding(key);
   if (!b) {
     std::string known;
-    std::vector<std::string> keys = {"sizing", "surface_mesher"};
+    std::vector<std::string> keys = {"sizing", "surface_mesher", "contact_pairs"};
     for (const auto& x : bindings()) {
       known += (known.empty() ? "" : ", ") + x.desc.key;
       keys.push_back(x.desc.key);
@@ -435,7 +458,7 @@ Status setParameter(MeshingParameters& params, const std::string& key, const std
       keys.push_back("material" + key.substr(dot));
     return {ErrorCode::InvalidArgument,
             "Unknown parameter '" + key + "'." + didYouMean(key, keys) + " Known parameters: " +
-                known + ", material.<label>.E|nu|density|name|exclude."};
+                known + ", contact_pairs, material.<label>.E|nu|density|name|exclude."};
   }
   double x = 0;
   if (!parseNumber(value, b->desc.type, x))
@@ -452,6 +475,7 @@ Status setParameter(MeshingParameters& params, const std::string& key, const std
 std::string getParameter(const MeshingParameters& params, const std::string& key) {
   if (key == "surface_mesher") return surfaceMesherName(params.boundary.mesher);
   if (key == "sizing") return sizingModeName(params.sizing.mode);
+  if (key == "contact_pairs") return contactPairsText(params.contactPairs);
   const Binding* b = findBinding(key);
   if (!b) return {};
   const double v = b->get(params);
@@ -491,6 +515,7 @@ std::string parametersToJson(const MeshingParameters& params) {
   }
   j["surface_mesher"] = surfaceMesherName(params.boundary.mesher);
   j["sizing"] = sizingModeName(params.sizing.mode);
+  j["contact_pairs"] = contactPairsText(params.contactPairs);
   json mats = json::object();
   for (const auto& [label, m] : params.materialProperties)
     mats[std::to_string(label)] = {{"E", m.youngsModulus}, {"nu", m.poissonRatio},
@@ -522,7 +547,7 @@ std::string parameterDescriptorsToJson() {
       }
     } else {
       j["default"] = d.defaultValue;
-      j["choices"] = d.choices;
+      if (d.type == "choice") j["choices"] = d.choices;
     }
     list.push_back(j);
   }

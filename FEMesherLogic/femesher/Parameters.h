@@ -20,6 +20,7 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace femesher {
@@ -62,12 +63,17 @@ struct MeshingParameters {
   /// Element order of the exported tets: 1 (4 nodes) or 2 (10 nodes, straight-edge midpoints;
   /// .inp, .msh, .vtu, .vtk, .feb only). Key `element_order`.
   int elementOrder = 1;
+  /// Material pairs whose interface is split into two coincident surfaces with their own nodes,
+  /// written as contact pairs (io/ContactSplit.h), as (labelA, labelB) user label ids; the first
+  /// label of a pair is the dependent (slave) side in the decks. Key `contact_pairs`, text
+  /// "A:B,C:D"; empty = none.
+  std::vector<std::pair<int32_t, int32_t>> contactPairs;
 };
 
 /// Description of one settable parameter.
 struct ParameterDescriptor {
   std::string key;          ///< as used by --set and JSON, e.g. "target_edge_length"
-  std::string type;         ///< "double", "int", "bool", "choice"
+  std::string type;         ///< "double", "int", "bool", "choice", "string"
   std::string unit;         ///< "mm", "voxels", "degrees", "" ...
   std::string defaultValue; ///< as text
   double minimum = 0, maximum = 0;  ///< valid range (inclusive) for numbers

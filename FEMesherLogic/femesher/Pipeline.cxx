@@ -27,12 +27,15 @@ namespace {
 PipelineResult collect(MeshingRun& run, RunContext& ctx,
                        std::chrono::steady_clock::time_point start) {
   PipelineResult result;
+  run.prepareExport();
   MeshingState& s = run.state();
   result.counts = run.reportCounts();
   result.warnings = ctx.warnings();
   result.totalSeconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   result.reportJson = runReportJson(run, result.warnings, result.totalSeconds);
+  result.contacts = std::move(s.contacts);
+  result.boxNodeSets = std::move(s.boxNodeSets);
   result.timings = s.timings;
   result.droppedLabels = s.grid.droppedLabels;
   result.excludedLabels = s.grid.excludedLabels;

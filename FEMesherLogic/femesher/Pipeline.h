@@ -26,6 +26,10 @@ struct PipelineResult {
   MeshCheckResult meshCheck;        ///< the check after Optimize: worst angle, poor elements
   FidelityReport fidelity;          ///< empty when compute_fidelity is off
   bool hasFidelity = false;
+  /// The interfaces split for contact (parameter contact_pairs; `mesh` has their node copies) and
+  /// the nodes on the faces of the input's box: what ExportOptions::contacts and ::nodeSets take.
+  std::vector<ContactSurfacePair> contacts;
+  std::vector<NamedNodeSet> boxNodeSets;
   std::vector<StageTiming> timings; ///< wall seconds per stage, in run order
   std::vector<std::string> warnings;
   /// Counts by name: "surface_samples", "surface_triangles", "vertices", "tets", ...

@@ -88,6 +88,16 @@ std::string runReportJson(const MeshingRun& run, const std::vector<std::string>&
                            {"dropped_cavity_tets", s.volumeMesh.droppedCavityTets}};
   report["quality"] = json::parse(qualityReportToJson(s.quality, true));
   if (s.hasFidelity) report["fidelity"] = json::parse(fidelityReportToJson(s.fidelity));
+  // What the exports get beyond the tets: the split contact pairs and the box-face node sets.
+  json contacts = json::array();
+  for (const auto& c : s.contacts)
+    contacts.push_back({{"labels", {c.labelA, c.labelB}},
+                        {"interface_triangles", c.facesA.size()},
+                        {"duplicated_nodes", c.duplicatedNodes}});
+  report["contact_pairs"] = contacts;
+  json boxSets = json::object();
+  for (const auto& n : s.boxNodeSets) boxSets[n.name] = n.nodes.size();
+  report["box_node_sets"] = boxSets;
   report["warnings"] = warnings;
   report["mesh_check"] = meshCheckJson(s);
   // "ok": no degenerate tet (a run with one fails) and every tet at or above

@@ -116,7 +116,7 @@ for e in root.iter():
     if e.find("longflag") is None:
         continue
     default = e.find("default")
-    args += [e.find("longflag").text, default.text if default is not None else ""]
+    args += [e.find("longflag").text, (default.text or "") if default is not None else ""]  # "": contact_pairs
 out_vtu = os.path.join(TMP, "slicer_style.vtu")
 r = run(*args, small, out_vtu)
 check(r.returncode == 0 and os.path.exists(out_vtu),

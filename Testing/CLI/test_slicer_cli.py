@@ -47,7 +47,7 @@ def run(*args):
     return subprocess.run([CLI, *args], capture_output=True, text=True, stdin=subprocess.DEVNULL)
 
 
-SCALAR_TAGS = {"integer", "double", "float", "boolean", "string-enumeration"}
+SCALAR_TAGS = {"integer", "double", "float", "boolean", "string-enumeration", "string"}
 FILE_TAGS = {"image", "geometry"}
 VALID_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 PLAIN_INT = re.compile(r"^-?[0-9]+$")
@@ -108,6 +108,9 @@ for e in params:
         check(e.tag == "string-enumeration" and default == d["default"]
               and [c.text for c in e.findall("element")] == d["choices"],
               "%s: string-enumeration %s of %s" % (name, default, d["choices"]))
+    elif d["type"] == "string":
+        check(e.tag == "string" and (default or "") == d["default"] and e.find("constraints") is None,
+              "%s: <string> with default '%s' = registry '%s'" % (name, default or "", d["default"]))
     elif d["type"] == "int":
         check(e.tag == "integer" and PLAIN_INT.match(default or "") and int(default) == d["default"],
               "%s: <integer> default %s = registry %s" % (name, default, d["default"]))
@@ -171,6 +174,9 @@ def slicer_command(inputs, flip_booleans=False):
             args += [flag, "%g" % float(default) if e.find("constraints") is not None else str(int(default))]
         elif e.tag == "double":
             args += [flag, "%g" % float(default)]
+        elif e.tag == "string":
+            if default:  # Slicer leaves an empty text field off the command line
+                args += [flag, default]
         else:
             args += [flag, default]
     return args + inputs, bare
@@ -232,7 +238,7 @@ for key, inverted in sorted(booleans.items()):
     check(got.get(key) is (not registry[key]["default"]),
           "ticking %s sets %s = %s (report: %s)" % (("no_" if inverted else "") + key, key,
                                                    not registry[key]["default"], got.get(key)))
-others = {k: d["default"] for k, d in registry.items() if d["type"] in ("int", "double", "choice")}
+others = {k: d["default"] for k, d in registry.items() if d["type"] in ("int", "double", "choice", "string")}
 check(all(got.get(k) == v for k, v in others.items()),
       "every other parameter stays at its default: %s" % {k: got.get(k) for k, v in others.items() if got.get(k) != v})
 
@@ -262,7 +268,10 @@ for extra, key, want in [
         (("--target_edge_length", "1.5"), "target_edge_length", 1.5),
         (("--target-edge-length", "1.5"), "target_edge_length", 1.5),
         (("--default_E", "2000"), "default.E", 2000),
-        (("--min_voxels", "1e+06"), "min_voxels", 1000000)]:
+        (("--min_voxels", "1e+06"), "min_voxels", 1000000),
+        (("--contact_pairs", "4:1"), "contact_pairs", "4:1"),
+        (("--contact-pairs", " 4:1 , 2:5"), "contact_pairs", "4:1,2:5"),
+        (("--set", "contact_pairs=4:1", "--contact_pairs", ""), "contact_pairs", "")]:
     r, p = saved(*extra)
     check(p is not None and p.get(key) == want,
           "%s -> %s = %s (%s)" % (" ".join(extra), key, want, r.stderr.strip()[-200:] or (p or {}).get(key)))
@@ -275,6 +284,13 @@ check(r.returncode == 2 and "contradict" in r.stderr,
       "--voxel-refinement true with --no-voxel-refinement: exit 2, says they contradict (%s)" % r.stderr.strip()[-200:])
 r, _ = saved("--voxel-refinement", "maybe")
 check(r.returncode == 2, "--voxel-refinement maybe: exit 2 (%d %s)" % (r.returncode, r.stderr.strip()[-200:]))
+r, _ = saved("--contact_pairs", "4-1")
+check(r.returncode == 2 and "contact_pairs" in r.stderr and "A:B" in r.stderr,
+      "--contact_pairs 4-1: exit 2 saying how to write pairs (%s)" % r.stderr.strip()[-200:])
+bad_out = os.path.join(TMP, "bad_pair.vtu")
+r = run("mesh", phantom, "-o", bad_out, "--contact_pairs", "4:9", "-q")
+check(r.returncode == 2 and "no label 9" in r.stderr and not os.path.exists(bad_out),
+      "--contact_pairs 4:9: exit 2 naming the label the phantom lacks (%s)" % r.stderr.strip()[-200:])
 r, _ = saved("--min_voxels", "2000000")
 check(r.returncode == 2 and "min_voxels" in r.stderr and "1000000" in r.stderr,
       "min_voxels above its range: exit 2 naming the range (%s)" % r.stderr.strip()[-200:])

@@ -75,10 +75,19 @@ def run_ccx(ccx, work, job, check, timeout):
     dat = os.path.join(work, job + ".dat")
     check(os.path.exists(dat), "%s: ccx wrote %s.dat" % (job, job))
     text = open(dat).read() if os.path.exists(dat) else ""
-    # Blocks of the .dat by their headers.
-    parts = re.split(r"\n\s*(displacements|total force)[^\n]*\n", text)
+    # Blocks of the .dat by their headers (other blocks, e.g. contact stress, are skipped).
     disp, totals = [], []
-    for kind, body in zip(parts[1::2], parts[2::2]):
+    for kind, body in dat_blocks(text):
         rows = [[float(x) for x in l.split()] for l in body.strip().splitlines() if l.strip()]
-        (disp if kind == "displacements" else totals).append(rows)
+        if kind.startswith("displacements"):
+            disp.append(rows)
+        elif kind.startswith("total force"):
+            totals.append(rows)
     return disp, totals
+
+
+def dat_blocks(text):
+    """(header, body) of each block of a CalculiX .dat ("displacements (vx,vy,vz) for set ...",
+    "contact stress (...) ...": a header line starts with a letter, data lines with a number)."""
+    parts = re.split(r"\n[ \t]*([a-z][^\n]*)\n", "\n" + text)
+    return list(zip(parts[1::2], parts[2::2]))

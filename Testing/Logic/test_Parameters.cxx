@@ -61,6 +61,14 @@ TEST(Parameters, DescriptorJsonHoldsTheRegistryExactly) {
     } else if (d.type == "choice") {
       EXPECT_EQ(e["default"], getParameter(defaults, d.key));
       EXPECT_EQ(e["choices"].get<std::vector<std::string>>(), d.choices);
+    } else if (d.type == "string") {
+      // Free text (contact_pairs): the default as text, set back unchanged; no range or choices.
+      ASSERT_TRUE(e["default"].is_string()) << d.key;
+      EXPECT_EQ(e["default"].get<std::string>(), getParameter(defaults, d.key)) << d.key;
+      EXPECT_FALSE(e.contains("choices") || e.contains("minimum")) << d.key;
+      MeshingParameters p;
+      ASSERT_TRUE(setParameter(p, d.key, e["default"].get<std::string>()).isOk()) << d.key;
+      EXPECT_EQ(getParameter(p, d.key), getParameter(defaults, d.key)) << d.key;
     } else {
       // The default, set back through setParameter as JSON text, gives the same parameters.
       MeshingParameters p;

@@ -6,6 +6,7 @@
 #include <femesher/io/QuadraticTets.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <set>
@@ -43,6 +44,33 @@ int abaqusFace(const std::array<int32_t, 4>& tet, const std::array<int32_t, 3>& 
   return 0;
 }
 
+/// Abaqus face number (S1..S4) of the face opposite local corner `opposite` (see abaqusFace).
+int abaqusFaceOpposite(int opposite) {
+  static const int S[4] = {3, 4, 2, 1};
+  return S[opposite];
+}
+
+/// Penalty slope (MPa/mm) of a contact pair's linear pressure-overclosure: 50 x the softer
+/// side's Young's modulus over the mean edge length h of the contact faces. The contact pressure
+/// is bounded by the softer side (about its E times its strain), so the overclosure stays near
+/// strain x h / 50, a small fraction of an element.
+double contactSlope(const TetMesh& m, const ContactSurfacePair& c, const ExportOptions& o) {
+  double edges = 0;
+  size_t count = 0;
+  for (const ElementFace& f : c.facesA) {
+    const auto v = outwardFace(m, f);
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 &a = m.points[size_t(v[size_t(k)])], &b = m.points[size_t(v[size_t((k + 1) % 3)])];
+      edges += std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                         (a[2] - b[2]) * (a[2] - b[2]));
+      ++count;
+    }
+  }
+  const double h = count ? edges / double(count) : 1.0;
+  const double e = std::min(propsFor(o, c.labelA).youngsModulus, propsFor(o, c.labelB).youngsModulus);
+  return 50.0 * e / (h > 0 ? h : 1.0);
+}
+
 /// Writes `ids` (already 1-based) comma separated, at most 16 per data line.
 void writeIdLines(std::FILE* f, const std::vector<size_t>& ids) {
   for (size_t i = 0; i < ids.size(); ++i) {
@@ -76,6 +104,16 @@ Status writeInp(const TetMesh& m, const std::string& path, const ExportOptions& 
                  "** NSET=BOUNDARY: nodes on the outer boundary. Element-based surfaces:\n"
                  "**   IF_<a>_<b> interface between labels a < b (faces of a's elements),\n"
                  "**   OUTER_<a> outer boundary of label a (negative labels written N<|a|>).\n");
+    if (!o.contacts.empty())
+      std::fprintf(f,
+                   "** Contact pairs (contact_pairs): the a|b interface is split into two coincident\n"
+                   "**   surfaces with their own nodes: CONTACT_<a>_<b>_S (faces of a's elements, the\n"
+                   "**   dependent side) and CONTACT_<a>_<b>_M (b's, the independent side), with a\n"
+                   "**   *SURFACE INTERACTION SI_<a>_<b> (linear penalty) and a *CONTACT PAIR.\n");
+    if (!o.nodeSets.empty())
+      std::fprintf(f,
+                   "** NSET BOX_XMIN..BOX_ZMAX: nodes on the faces of the scan's box (X, Y, Z = the\n"
+                   "**   image's voxel axes i, j, k; MIN at the first voxel's outer edge).\n");
     if (quadratic)
       std::fprintf(f, "** C3D10: nodes after %zu are mid-edge nodes at the straight edge midpoints.\n",
                    q.cornerCount);
@@ -124,6 +162,27 @@ Status writeInp(const TetMesh& m, const std::string& path, const ExportOptions& 
           throw Error(ErrorCode::Internal, "Interface triangle is not a face of its tet (" + path + ")");
         std::fprintf(f, "%d, S%d\n", t.tetA + 1, face);
       }
+    }
+    for (const auto& n : o.nodeSets) {
+      std::vector<size_t> setIds;
+      for (int32_t v : exportedNodeSet(m, n, quadratic ? &q : nullptr)) setIds.push_back(size_t(v) + 1);
+      std::fprintf(f, "*NSET, NSET=%s\n", n.name.c_str());
+      writeIdLines(f, setIds);
+    }
+    // Contact pairs: the two sides' element faces, the interaction, the pair (dependent first).
+    for (const auto& c : o.contacts) {
+      const std::string base = labelToken(c.labelA) + "_" + labelToken(c.labelB);
+      for (const auto* faces : {&c.facesA, &c.facesB}) {
+        std::fprintf(f, "*SURFACE, NAME=CONTACT_%s_%s, TYPE=ELEMENT\n", base.c_str(),
+                     faces == &c.facesA ? "S" : "M");
+        for (const ElementFace& face : *faces)
+          std::fprintf(f, "%d, S%d\n", face.tet + 1, abaqusFaceOpposite(face.opposite));
+      }
+      std::fprintf(f, "*SURFACE INTERACTION, NAME=SI_%s\n", base.c_str());
+      std::fprintf(f, "*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR\n%s\n",
+                   inpReal(contactSlope(m, c, o)).c_str());
+      std::fprintf(f, "*CONTACT PAIR, INTERACTION=SI_%s, TYPE=SURFACE TO SURFACE\n", base.c_str());
+      std::fprintf(f, "CONTACT_%s_S, CONTACT_%s_M\n", base.c_str(), base.c_str());
     }
     for (const auto& [l, name] : elset) {
       const ElasticProperties& p = propsFor(o, l);

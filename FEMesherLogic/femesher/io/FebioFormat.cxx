@@ -7,7 +7,10 @@
 // SolidDomain per Elements naming a material by name). With element_order 2: tet10 elements
 // (corners, then the midpoints of edges 1-2, 2-3, 3-1, 1-4, 2-4, 3-4, the order of FEBio's
 // FETet10 shape functions), tri6 surface faces (corners, then edges 1-2, 2-3, 3-1) and NodeSets
-// holding the mid-edge nodes.
+// holding the mid-edge nodes. Contact pairs (ExportOptions::contacts): per pair two Surfaces, a
+// SurfacePair (<primary>, <secondary>, as FEBio's 4.0 mesh reader reads them) and a
+// "sliding-elastic" contact in a Contact section, with parameters of the manual's sliding-elastic
+// table (penalty with auto_penalty, frictionless, one pass).
 #include <femesher/Version.h>
 #include <femesher/io/MeshFormats.h>
 #include <femesher/io/QuadraticTets.h>
@@ -77,8 +80,12 @@ Status writeFeb(const TetMesh& m, const std::string& path, const ExportOptions& 
         "     materials a and b, faces oriented outward from a; <a>__boundary: a's outer "
         "boundary,\n"
         "     faces oriented outward. NodeSets nodes__<a>, nodes__<a>__<b>, nodes__<a>__boundary:\n"
-        "     the nodes of a material, an interface, an outer boundary. Add Boundary and Loads\n"
-        "     sections (and edit Control) for an analysis.\n",
+        "     the nodes of a material, an interface, an outer boundary. BOX_XMIN..BOX_ZMAX: nodes\n"
+        "     on the faces of the scan's box (X, Y, Z = the image's voxel axes i, j, k). Split\n"
+        "     contact pairs: Surfaces contact__<a>__<b>__<a> / __<b> (each side's faces, outward\n"
+        "     from its own elements), SurfacePair contact__<a>__<b> (primary a) and a\n"
+        "     sliding-elastic contact. Add Boundary and Loads sections (and edit Control) for an\n"
+        "     analysis.\n",
         FEMESHER_VERSION, o.provenance.empty() ? "" : (": " + commentText(o.provenance)).c_str());
     for (const auto& [l, n] : names)
       std::fprintf(f, "     label %d '%s' -> material and domain %s\n", l,
@@ -139,6 +146,12 @@ Status writeFeb(const TetMesh& m, const std::string& path, const ExportOptions& 
       writeIdList(f, nodes);
       std::fprintf(f, "\t\t</NodeSet>\n");
     }
+    for (const auto& n : o.nodeSets) {
+      const auto ids = exportedNodeSet(m, n, quadratic ? &q : nullptr);
+      std::fprintf(f, "\t\t<NodeSet name=\"%s\">\n", n.name.c_str());
+      writeIdList(f, std::set<int32_t>(ids.begin(), ids.end()));
+      std::fprintf(f, "\t\t</NodeSet>\n");
+    }
     // Faces in the order extractInterfaces gives: outward from labelA's tet.
     for (const auto& [key, list] : patches) {
       std::fprintf(f, "\t\t<Surface name=\"%s\">\n", surfaceName(key).c_str());
@@ -152,11 +165,51 @@ Status writeFeb(const TetMesh& m, const std::string& path, const ExportOptions& 
       }
       std::fprintf(f, "\t\t</Surface>\n");
     }
+    auto pairName = [&](const ContactSurfacePair& c) {
+      return "contact__" + names.at(c.labelA) + "__" + names.at(c.labelB);
+    };
+    for (const auto& c : o.contacts)
+      for (const auto* faces : {&c.facesA, &c.facesB}) {
+        const int32_t side = faces == &c.facesA ? c.labelA : c.labelB;
+        std::fprintf(f, "\t\t<Surface name=\"%s__%s\">\n", pairName(c).c_str(),
+                     names.at(side).c_str());
+        size_t fid = 0;
+        const char* type = quadratic ? "tri6" : "tri3";
+        for (const ElementFace& face : *faces) {
+          const auto v = outwardFace(m, face);
+          std::vector<int32_t> n(v.begin(), v.end());
+          if (quadratic)
+            for (int k = 0; k < 3; ++k) n.push_back(q.midNode(v[size_t(k)], v[size_t((k + 1) % 3)]));
+          std::fprintf(f, "\t\t\t<%s id=\"%zu\">", type, ++fid);
+          for (size_t k = 0; k < n.size(); ++k) std::fprintf(f, "%s%d", k ? "," : "", n[k] + 1);
+          std::fprintf(f, "</%s>\n", type);
+        }
+        std::fprintf(f, "\t\t</Surface>\n");
+      }
+    for (const auto& c : o.contacts)
+      std::fprintf(f,
+                   "\t\t<SurfacePair name=\"%s\">\n\t\t\t<primary>%s__%s</primary>\n"
+                   "\t\t\t<secondary>%s__%s</secondary>\n\t\t</SurfacePair>\n",
+                   pairName(c).c_str(), pairName(c).c_str(), names.at(c.labelA).c_str(),
+                   pairName(c).c_str(), names.at(c.labelB).c_str());
     std::fprintf(f, "\t</Mesh>\n\t<MeshDomains>\n");
     for (const auto& [l, tets] : byLabel)
       std::fprintf(f, "\t\t<SolidDomain name=\"%s\" mat=\"%s\"/>\n", names.at(l).c_str(),
                    names.at(l).c_str());
-    std::fprintf(f, "\t</MeshDomains>\n</febio_spec>\n");
+    std::fprintf(f, "\t</MeshDomains>\n");
+    if (!o.contacts.empty()) {
+      std::fprintf(f, "\t<Contact>\n");
+      for (const auto& c : o.contacts)
+        std::fprintf(f,
+                     "\t\t<contact type=\"sliding-elastic\" name=\"%s\" surface_pair=\"%s\">\n"
+                     "\t\t\t<penalty>1</penalty>\n\t\t\t<auto_penalty>1</auto_penalty>\n"
+                     "\t\t\t<two_pass>0</two_pass>\n\t\t\t<search_tol>0.01</search_tol>\n"
+                     "\t\t\t<symmetric_stiffness>0</symmetric_stiffness>\n"
+                     "\t\t\t<fric_coeff>0</fric_coeff>\n\t\t</contact>\n",
+                     pairName(c).c_str(), pairName(c).c_str());
+      std::fprintf(f, "\t</Contact>\n");
+    }
+    std::fprintf(f, "</febio_spec>\n");
   });
 }
 

@@ -152,4 +152,33 @@ Result<TetMesh> finishRead(TetMesh m, const std::string& path, const std::map<in
   return m;
 }
 
+std::vector<int32_t> exportedNodeSet(const TetMesh& m, const NamedNodeSet& set,
+                                     const QuadraticTetMesh* q) {
+  std::set<int32_t> nodes(set.nodes.begin(), set.nodes.end());
+  if (q) {
+    std::vector<char> in(m.points.size(), 0);
+    for (int32_t v : set.nodes) in[size_t(v)] = 1;
+    for (const auto& t : m.tets)
+      for (const auto& e : kTet10Edges)
+        if (in[size_t(t[size_t(e[0])])] && in[size_t(t[size_t(e[1])])])
+          nodes.insert(q->midNode(t[size_t(e[0])], t[size_t(e[1])]));
+  }
+  return {nodes.begin(), nodes.end()};
+}
+
+std::array<int32_t, 3> outwardFace(const TetMesh& m, const ElementFace& f) {
+  const auto& t = m.tets[size_t(f.tet)];
+  std::array<int32_t, 3> v{};
+  for (int i = 0, n = 0; i < 4; ++i)
+    if (i != f.opposite) v[size_t(n++)] = t[size_t(i)];
+  const Vec3 &a = m.points[size_t(v[0])], &b = m.points[size_t(v[1])], &c = m.points[size_t(v[2])];
+  const Vec3& o = m.points[size_t(t[size_t(f.opposite)])];
+  const Vec3 u{b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w{c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+  const Vec3 nrm{u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+  const double toOpposite =
+      nrm[0] * (o[0] - a[0]) + nrm[1] * (o[1] - a[1]) + nrm[2] * (o[2] - a[2]);
+  if (toOpposite > 0) std::swap(v[1], v[2]);
+  return v;
+}
+
 }  // namespace femesher::meshio

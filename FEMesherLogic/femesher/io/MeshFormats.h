@@ -12,6 +12,7 @@
 #include <femesher/Types.h>
 #include <femesher/io/AtomicFile.h>
 #include <femesher/io/MeshIO.h>
+#include <femesher/io/QuadraticTets.h>
 
 #include <cstdio>
 #include <istream>
@@ -101,6 +102,15 @@ std::map<int32_t, std::string> uniqueMaterialNames(const TetMesh& m, const char*
 
 /// Label as it may appear inside an Abaqus identifier: 7 -> "7", -7 -> "N7".
 std::string labelToken(int32_t l);
+
+/// The nodes of `set` and, with `q` (element order 2), the mid-edge node of every tet edge whose
+/// two ends are in the set (a set of nodes on a plane then holds its mid-edge nodes too);
+/// ascending, 0-based.
+std::vector<int32_t> exportedNodeSet(const TetMesh& m, const NamedNodeSet& set,
+                                     const QuadraticTetMesh* q);
+
+/// The corners of element face `f`, ordered so that the right-hand normal points out of its tet.
+std::array<int32_t, 3> outwardFace(const TetMesh& m, const ElementFace& f);
 
 /// WriteFailed "Cannot write '<path>': the disk may be full or the folder not writable."
 Status ioError(const std::string& path);

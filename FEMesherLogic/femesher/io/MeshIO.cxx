@@ -26,6 +26,26 @@ Status checkMesh(const TetMesh& mesh, const std::string& path) {
   return Status::ok();
 }
 
+/// The contact faces and node sets of `options` must belong to `mesh` (they are made for the mesh
+/// a run returned: PipelineResult::contacts, ::boxNodeSets).
+Status checkExportTables(const TetMesh& mesh, const std::string& path, const ExportOptions& o) {
+  const Status bad(ErrorCode::Internal,
+                   "Cannot write '" + path + "': the contact pairs or node sets given with the "
+                   "mesh do not belong to it (export the mesh together with its run's tables).");
+  for (const auto& c : o.contacts) {
+    if (c.facesA.size() != c.facesB.size()) return bad;
+    for (const auto* faces : {&c.facesA, &c.facesB})
+      for (const ElementFace& f : *faces)
+        if (f.tet < 0 || size_t(f.tet) >= mesh.tets.size() || f.opposite < 0 || f.opposite > 3 ||
+            mesh.tetLabels[size_t(f.tet)] != (faces == &c.facesA ? c.labelA : c.labelB))
+          return bad;
+  }
+  for (const auto& n : o.nodeSets)
+    for (int32_t v : n.nodes)
+      if (v < 0 || size_t(v) >= mesh.points.size()) return bad;
+  return Status::ok();
+}
+
 }  // namespace
 
 ExportOptions exportOptionsFrom(const MeshingParameters& params) {
@@ -103,6 +123,7 @@ Status writeMesh(const TetMesh& mesh, const std::string& path, const ExportOptio
   if (it == writers.end())
     return {ErrorCode::Internal, "Cannot write '" + path + "': no writer for '" + ext + "'."};
   if (Status s = checkMesh(mesh, path); !s) return s;
+  if (Status s = checkExportTables(mesh, path, options); !s) return s;
   try {
     return it->second(mesh, path, options);
   } catch (const Error& e) {

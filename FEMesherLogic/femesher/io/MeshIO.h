@@ -20,6 +20,8 @@
 ///  - .stl  ASCII STL: one `solid` per interface (outward from the lower label).
 ///  - .vtk  legacy VTK (binary, Slicer's "SPACE=LPS" header, which Slicer reads): cell array
 ///          `labels`, no field data.
+/// .inp and .feb also write `ExportOptions::contacts` (split interfaces as contact pairs) and
+/// `ExportOptions::nodeSets` (the box-face node sets); see ExportOptions.
 /// All writers are atomic (temporary file + rename). Coordinates are written in LPS mm.
 /// With `ExportOptions::elementOrder` = 2 the .inp, .msh, .vtu, .vtk and .feb writers write
 /// 10-node tets (QuadraticTets.h: one straight-edge midpoint node per unique edge, node order of
@@ -32,6 +34,7 @@
 #include <femesher/Parameters.h>
 #include <femesher/Status.h>
 #include <femesher/Types.h>
+#include <femesher/io/ContactSplit.h>
 
 #include <map>
 #include <string>
@@ -50,6 +53,18 @@ struct ExportOptions {
   std::string provenance;
   /// 1: 4-node tets; 2: 10-node tets (parameter `element_order`; see the file comment).
   int elementOrder = 1;
+  /// Interfaces split for contact (`splitContactInterfaces`, PipelineResult::contacts) of the
+  /// mesh being written. .inp: element-face *SURFACEs CONTACT_<a>_<b>_S (faces of a's elements,
+  /// the dependent side) and CONTACT_<a>_<b>_M (b's, the independent side), a *SURFACE
+  /// INTERACTION with a linear pressure-overclosure penalty and a *CONTACT PAIR, TYPE=SURFACE TO
+  /// SURFACE. .feb: Surfaces contact__<a>__<b>__<a> and ...__<b> (faces outward from their own
+  /// tets), a SurfacePair contact__<a>__<b> (primary a, secondary b) and a sliding-elastic
+  /// <Contact>. Other formats carry the split as the duplicated nodes only. The split faces also
+  /// belong to each side's outer boundary (OUTER_<a>, <a>__boundary, NSET BOUNDARY).
+  std::vector<ContactSurfacePair> contacts;
+  /// Extra named node sets (PipelineResult::boxNodeSets): .inp *NSET, .feb <NodeSet>; with
+  /// element order 2 they also hold the mid-edge node of every edge whose two ends they hold.
+  std::vector<NamedNodeSet> nodeSets;
 };
 
 /// Export options from the meshing parameters (material properties).
