@@ -247,6 +247,7 @@ TEST(MeshIO, AbaqusInputIsCompleteAndConsistent) {
   std::map<std::string, std::vector<int>> elsets;
   std::map<std::string, std::vector<std::pair<int, int>>> surfaces;
   std::set<int> boundary;
+  std::map<std::string, std::set<int>> nsets;  // every *NSET but BOUNDARY, by name
   std::map<std::string, std::string> sectionMaterial;
   std::map<std::string, std::pair<double, double>> elastic;
   std::map<std::string, double> density;
@@ -269,6 +270,8 @@ TEST(MeshIO, AbaqusInputIsCompleteAndConsistent) {
         current = grab("ELSET");
       } else if (l.rfind("*SURFACE", 0) == 0) {
         current = grab("NAME");
+      } else if (l.rfind("*NSET", 0) == 0) {
+        current = grab("NSET");
       } else if (l.rfind("*MATERIAL", 0) == 0) {
         material = grab("NAME");
       } else if (l.rfind("*SOLID SECTION", 0) == 0) {
@@ -295,6 +298,8 @@ TEST(MeshIO, AbaqusInputIsCompleteAndConsistent) {
       elsets[current].push_back(std::stoi(f[0]));
     } else if (kw.rfind("*NSET, NSET=BOUNDARY", 0) == 0) {
       for (const auto& x : f) boundary.insert(std::stoi(x));
+    } else if (kw.rfind("*NSET", 0) == 0) {
+      for (const auto& x : f) nsets[current].insert(std::stoi(x));
     } else if (kw.rfind("*SURFACE", 0) == 0) {
       ASSERT_EQ(f.size(), 2u);
       surfaces[current].push_back({std::stoi(f[0]), std::stoi(f[1].substr(f[1].find('S') + 1))});
@@ -350,6 +355,14 @@ TEST(MeshIO, AbaqusInputIsCompleteAndConsistent) {
   }
   EXPECT_EQ(boundary, expectBoundary);
   EXPECT_EQ(boundary.size(), size_t(4 * 4 * 4 - 2 * 2 * 2));
+  // Node sets: N_<elset> holds exactly the nodes of the material's elements, N_<surface> exactly
+  // the nodes of that surface's triangles; nothing else.
+  std::map<std::string, std::set<int>> expectSets;
+  for (const auto& [name, ids] : elsets)
+    for (int e : ids) expectSets["N_" + name].insert(elements.at(e).begin(), elements.at(e).end());
+  for (const auto& [name, faces] : expectFaces)
+    for (const auto& k : faces) expectSets["N_" + name].insert(k.begin(), k.end());
+  EXPECT_EQ(nsets, expectSets);
   // Surfaces: the face Sk of element e (Abaqus C3D4 numbering) is the interface triangle.
   static const int F[4][3] = {{0, 1, 2}, {0, 3, 1}, {1, 3, 2}, {2, 3, 0}};
   ASSERT_EQ(surfaces.size(), expectFaces.size());

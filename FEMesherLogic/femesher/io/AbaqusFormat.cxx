@@ -101,7 +101,8 @@ Status writeInp(const TetMesh& m, const std::string& path, const ExportOptions& 
       std::fprintf(f, "**     name '%s'\n", oneLine(materialName(m, l)).substr(0, 100).c_str());
     }
     std::fprintf(f,
-                 "** NSET=BOUNDARY: nodes on the outer boundary. Element-based surfaces:\n"
+                 "** NSET=BOUNDARY: nodes on the outer boundary; N_<elset>: nodes of a material;\n"
+                 "** N_IF_<a>_<b>, N_OUTER_<a>: nodes of the surfaces below. Element-based surfaces:\n"
                  "**   IF_<a>_<b> interface between labels a < b (faces of a's elements),\n"
                  "**   OUTER_<a> outer boundary of label a (negative labels written N<|a|>).\n");
     if (!o.contacts.empty())
@@ -149,6 +150,35 @@ Status writeInp(const TetMesh& m, const std::string& path, const ExportOptions& 
     for (int32_t v : boundary) ids.push_back(size_t(v) + 1);
     std::fprintf(f, "*NSET, NSET=BOUNDARY\n");
     writeIdLines(f, ids);
+    // Node sets where loads and fixations go: per material (N_<elset>) and per interface or outer
+    // boundary patch (N_IF_<a>_<b>, N_OUTER_<a>), mid-edge nodes included for C3D10.
+    auto writeNodeSet = [&](const std::string& name, const std::set<int32_t>& nodes) {
+      std::vector<size_t> setIds;
+      for (int32_t v : nodes) setIds.push_back(size_t(v) + 1);
+      std::fprintf(f, "*NSET, NSET=%s\n", name.substr(0, 80).c_str());
+      writeIdLines(f, setIds);
+    };
+    for (const auto& [l, tets] : byLabel) {
+      std::set<int32_t> nodes;
+      for (size_t t : tets) {
+        if (quadratic) nodes.insert(q.tets[t].begin(), q.tets[t].end());
+        else nodes.insert(m.tets[t].begin(), m.tets[t].end());
+      }
+      writeNodeSet("N_" + elset.at(l), nodes);
+    }
+    for (const auto& [key, list] : patches) {
+      std::set<int32_t> nodes;
+      for (size_t i : list) {
+        const auto& t = tris[i];
+        nodes.insert(t.v.begin(), t.v.end());
+        if (quadratic)
+          for (int k = 0; k < 3; ++k) nodes.insert(q.midNode(t.v[size_t(k)], t.v[size_t((k + 1) % 3)]));
+      }
+      writeNodeSet(key.second == kExteriorLabel
+                       ? "N_OUTER_" + labelToken(key.first)
+                       : "N_IF_" + labelToken(key.first) + "_" + labelToken(key.second),
+                   nodes);
+    }
     // Element-based surfaces, faces seen from labelA's elements.
     for (const auto& [key, list] : patches) {
       const std::string name = key.second == kExteriorLabel
