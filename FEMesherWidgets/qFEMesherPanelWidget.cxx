@@ -218,7 +218,9 @@ QWidget* qFEMesherPanelWidget::makeParameterEditor(const femesher::ParameterDesc
   spin->setSingleStep(d.type == "int" ? 1 : (d.maximum <= 20 ? 0.1 : 0.5));
   spin->setSuffix(unitSuffix(d.unit));
   spin->setKeyboardTracking(false);
-  if (d.key == "target_edge_length") spin->setSpecialValueText(tr("Automatic"));
+  // 0 = computed from the voxel size: say so rather than "0.00 mm".
+  if (d.key == "target_edge_length" || d.key == "h_min" || d.key == "h_max")
+    spin->setSpecialValueText(tr("Automatic"));
   connect(spin, QOverload<double>::of(&QDoubleSpinBox::valueChanged), this,
           &qFEMesherPanelWidget::onParameterEdited);
   return spin;
@@ -843,7 +845,7 @@ void qFEMesherPanelWidget::onCanceled() {
   state_ = QStringLiteral("canceled");
   progress_->setValue(0);
   progress_->setFormat(tr("Canceled"));
-  showInfo(tr("Run canceled after %1 s of waiting; nothing was written. %2")
+  showInfo(tr("Run canceled (it stopped %1 s after Cancel); nothing was written. %2")
                .arg(runner_->lastCancelLatency(), 0, 'f', 2)
                .arg(keptResultNote()));
   updateButtons();

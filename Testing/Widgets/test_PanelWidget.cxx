@@ -142,6 +142,11 @@ class PanelWidgetTest : public QObject {
     spin("target_edge_length")->setValue(2.5);
     QCOMPARE(panel_->parameters().sizing.targetEdgeLength, 2.5);
     QCOMPARE(spin("target_edge_length")->suffix(), QStringLiteral(" mm"));
+    // The automatic sizes read "Automatic" at 0, not "0.00 mm".
+    for (const char* key : {"h_min", "h_max"}) {
+      QCOMPARE(spin(key)->value(), 0.0);
+      QCOMPARE(spin(key)->text(), QStringLiteral("Automatic"));
+    }
     // Every descriptor has an editor with its help as tooltip; advanced ones sit in the group.
     for (const auto& d : parameterDescriptors()) {
       QWidget* e = panel_->parameterEditor(QString::fromStdString(d.key));
