@@ -91,3 +91,37 @@ def dat_blocks(text):
     "contact stress (...) ...": a header line starts with a letter, data lines with a number)."""
     parts = re.split(r"\n[ \t]*([a-z][^\n]*)\n", "\n" + text)
     return list(zip(parts[1::2], parts[2::2]))
+
+
+class InpModel:
+    """What the export tests read from an .inp: nodes (id -> xyz array), elements (id -> node ids,
+    4 or 10), label_of (element id -> label of its ELSET M<label>_..., None otherwise), the element
+    types, nsets (name -> node ids in file order) and surfaces (name -> (element id, face))."""
+
+    def __init__(self, text):
+        import numpy as np
+        self.nodes, self.elements, self.label_of = {}, {}, {}
+        self.types, self.nsets, self.surfaces = set(), {}, {}
+        section, name, label = "", None, None
+        for line in text.splitlines():
+            if line.startswith("**"):
+                continue
+            if line.startswith("*"):
+                section = line.upper()
+                m = re.search(r"(?:NSET|NAME)=(\w+)", section)
+                name = m.group(1) if m else None
+                if section.startswith("*ELEMENT"):
+                    self.types.add(re.search(r"TYPE=(\w+)", section).group(1))
+                    m = re.search(r"ELSET=M(\d+)_", section)
+                    label = int(m.group(1)) if m else None
+                continue
+            f = [x.strip() for x in line.split(",") if x.strip()]
+            if section.startswith("*NODE"):
+                self.nodes[int(f[0])] = np.array([float(x) for x in f[1:4]])
+            elif section.startswith("*ELEMENT"):
+                self.elements[int(f[0])] = [int(x) for x in f[1:]]
+                self.label_of[int(f[0])] = label
+            elif section.startswith("*NSET"):
+                self.nsets.setdefault(name, []).extend(int(x) for x in f)
+            elif section.startswith("*SURFACE,"):
+                self.surfaces.setdefault(name, []).append((int(f[0]), int(f[1][1:])))

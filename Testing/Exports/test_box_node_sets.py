@@ -12,12 +12,11 @@ box, and its cartilages touch. Meshed (coarse) with contact_pairs=2:4:
     the other side, the sides sharing nodes only where a third material touches both; a SurfacePair naming them as primary (2) and secondary (4); a sliding-elastic
     contact on that pair."""
 import os
-import re
 import xml.etree.ElementTree as ET
 
 import numpy as np
 
-from exports_common import DATA, Checker, mesh_volume
+from exports_common import DATA, Checker, InpModel, mesh_volume
 
 check = Checker()
 knee = os.path.join(DATA, "9135902_00m_WB01.nii.gz")
@@ -31,25 +30,9 @@ check(set(box_sets) >= {"BOX_ZMIN", "BOX_ZMAX"} and all(v > 0 for v in box_sets.
       "the report lists non-empty box sets, Z at both ends %s" % box_sets)
 
 # --- INP: nodes, elements with labels, NSETs ----------------------------------------------------
-nodes, label_of, elements, nsets = {}, {}, {}, {}
-section, elset_label = "", None
-for line in open(base + ".inp"):
-    line = line.rstrip("\n")
-    if line.startswith("**"):
-        continue
-    if line.startswith("*"):
-        section = line.upper()
-        m = re.search(r"ELSET=M(\d+)_", section)
-        elset_label = int(m.group(1)) if section.startswith("*ELEMENT") and m else None
-        continue
-    f = [x.strip() for x in line.split(",") if x.strip()]
-    if section.startswith("*NODE"):
-        nodes[int(f[0])] = np.array([float(x) for x in f[1:4]])
-    elif section.startswith("*ELEMENT"):
-        elements[int(f[0])] = [int(x) for x in f[1:5]]
-        label_of[int(f[0])] = elset_label
-    elif section.startswith("*NSET, NSET=BOX_"):
-        nsets.setdefault(section.split("=")[1], []).extend(int(x) for x in f)
+model = InpModel(open(base + ".inp").read())
+nodes, label_of, elements = model.nodes, model.label_of, model.elements
+nsets = {k: v for k, v in model.nsets.items() if k.startswith("BOX_")}
 check({k: len(v) for k, v in nsets.items()} == box_sets,
       "INP *NSETs BOX_* = the report's sets %s" % {k: len(v) for k, v in nsets.items()})
 ids = np.array(sorted(nodes))

@@ -11,12 +11,11 @@ in both decks) within 20 % of each other (C3D4 is the stiffer element, so C3D10 
 or somewhat more; measured on 2026-11-24: 2.3 % apart)."""
 import math
 import os
-import re
 import shutil
 
 import numpy as np
 
-from exports_common import IN_CI, Checker, mesh_volume, node_lines, run_ccx
+from exports_common import IN_CI, Checker, InpModel, mesh_volume, node_lines, run_ccx
 
 check = Checker()
 ccx = shutil.which("ccx")
@@ -29,24 +28,8 @@ SETTINGS = ["--set", "sizing_scale=1.5", "--set", "material.5.E=110000", "--set"
 
 
 def parse(inp):
-    nodes, elements, boundary, types = {}, {}, set(), set()
-    section = ""
-    for line in inp.splitlines():
-        if line.startswith("**"):
-            continue
-        if line.startswith("*"):
-            section = line.upper()
-            if section.startswith("*ELEMENT"):
-                types.add(re.search(r"TYPE=(\w+)", section).group(1))
-            continue
-        f = [x.strip() for x in line.split(",") if x.strip()]
-        if section.startswith("*NODE"):
-            nodes[int(f[0])] = np.array([float(x) for x in f[1:4]])
-        elif section.startswith("*ELEMENT"):
-            elements[int(f[0])] = [int(x) for x in f[1:]]
-        elif section.startswith("*NSET, NSET=BOUNDARY"):
-            boundary.update(int(x) for x in f)
-    return nodes, elements, boundary, types
+    m = InpModel(inp)
+    return m.nodes, m.elements, set(m.nsets.get("BOUNDARY", [])), m.types
 
 
 def solve(inp_path, job, nodes, boundary, n_vertices):

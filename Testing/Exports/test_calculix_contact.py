@@ -19,7 +19,7 @@ import shutil
 import meshio
 import numpy as np
 
-from exports_common import IN_CI, Checker, dat_blocks, mesh_volume, node_lines, run_ccx
+from exports_common import IN_CI, Checker, InpModel, dat_blocks, mesh_volume, node_lines, run_ccx
 
 check = Checker()
 ccx = shutil.which("ccx")
@@ -49,25 +49,9 @@ check(report.get("box_node_sets") == {} and "NSET=BOX_" not in inp,
       "the phantom does not reach its box: no BOX_ node sets (report %s)" % report.get("box_node_sets"))
 
 # Parse nodes, elements with their label, and the two contact surfaces.
-nodes, elements, label_of, surfaces = {}, {}, {}, {}
-section, elset_label = "", None
-for line in inp.splitlines():
-    if line.startswith("**"):
-        continue
-    if line.startswith("*"):
-        section = line.upper()
-        m = re.search(r"ELSET=M(\d+)_", section)
-        elset_label = int(m.group(1)) if section.startswith("*ELEMENT") and m else None
-        continue
-    f = [x.strip() for x in line.split(",") if x.strip()]
-    if section.startswith("*NODE"):
-        nodes[int(f[0])] = np.array([float(x) for x in f[1:4]])
-    elif section.startswith("*ELEMENT"):
-        elements[int(f[0])] = [int(x) for x in f[1:5]]
-        label_of[int(f[0])] = elset_label
-    elif section.startswith("*SURFACE, NAME=CONTACT_"):
-        name = re.search(r"NAME=(\w+)", section).group(1)
-        surfaces.setdefault(name, []).append((int(f[0]), int(f[1][1:])))
+model = InpModel(inp)
+nodes, elements, label_of = model.nodes, model.elements, model.label_of
+surfaces = {k: v for k, v in model.surfaces.items() if k.startswith("CONTACT_")}
 check(len(nodes) == int(report["counts"]["vertices"]), "INP has the report's %d nodes (copies included)" % len(nodes))
 FACES = {1: (0, 1, 2), 2: (0, 3, 1), 3: (1, 3, 2), 4: (2, 3, 0)}
 slave, master = surfaces.get("CONTACT_4_1_S", []), surfaces.get("CONTACT_4_1_M", [])

@@ -17,7 +17,7 @@ import shutil
 
 import numpy as np
 
-from exports_common import IN_CI, Checker, mesh_volume, node_lines, run_ccx
+from exports_common import IN_CI, Checker, InpModel, mesh_volume, node_lines, run_ccx
 
 check = Checker()
 ccx = shutil.which("ccx")
@@ -35,25 +35,11 @@ check("*SOLID SECTION" in inp and "*ELASTIC" in inp and "*DENSITY" in inp, "INP 
 check(re.search(r"\*ELASTIC\n110000, 0\.34\n", inp) is not None, "per-material E and nu reach the INP")
 check("*SURFACE, NAME=IF_" in inp and "*NSET, NSET=BOUNDARY" in inp, "INP has interface surfaces and the boundary node set")
 
-# Parse nodes, BOUNDARY, element connectivity and the OUTER_ surfaces.
-nodes, elements, boundary, outer = {}, {}, set(), {}
-section = ""
-for line in inp.splitlines():
-    if line.startswith("**"):
-        continue
-    if line.startswith("*"):
-        section = line.upper()
-        continue
-    f = [x.strip() for x in line.split(",") if x.strip()]
-    if section.startswith("*NODE"):
-        nodes[int(f[0])] = np.array([float(x) for x in f[1:4]])
-    elif section.startswith("*ELEMENT"):
-        elements[int(f[0])] = [int(x) for x in f[1:5]]
-    elif section.startswith("*NSET, NSET=BOUNDARY"):
-        boundary.update(int(x) for x in f)
-    elif section.startswith("*SURFACE, NAME=OUTER_"):
-        name = re.search(r"NAME=(\w+)", section).group(1)
-        outer.setdefault(name, []).append((int(f[0]), int(f[1][1:])))
+# Nodes, BOUNDARY, element connectivity and the OUTER_ surfaces.
+model = InpModel(inp)
+nodes, elements = model.nodes, model.elements
+boundary = set(model.nsets.get("BOUNDARY", []))
+outer = {k: v for k, v in model.surfaces.items() if k.startswith("OUTER_")}
 n_tets = int(report["counts"]["tets"])
 check(len(nodes) == int(report["counts"]["vertices"]) and len(elements) == n_tets,
       "INP has %d nodes and %d elements as in the report" % (len(nodes), len(elements)))

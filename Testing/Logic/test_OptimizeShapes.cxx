@@ -68,12 +68,6 @@ PipelineResult mesh(const LabelVolume& v, bool optimize) {
   return r.isOk() ? std::move(r).value() : PipelineResult{};
 }
 
-std::map<int32_t, double> volumes(const TetMesh& m) {
-  std::map<int32_t, double> v;
-  for (size_t t = 0; t < m.tets.size(); ++t) v[m.tetLabels[t]] += m.tetVolume(t);
-  return v;
-}
-
 class OptimizeShapes : public ::testing::TestWithParam<Shape> {};
 
 }  // namespace
@@ -90,7 +84,7 @@ TEST_P(OptimizeShapes, ConformalVolumesKeptWorstAngleOnlyRisesDeterministic) {
   for (size_t t = 0; t < on.mesh.tets.size(); ++t) smallest = std::min(smallest, on.mesh.tetVolume(t));
   EXPECT_GT(smallest, 0.0) << "a tet of zero or negative volume";
 
-  const auto vOff = volumes(off.mesh), vOn = volumes(on.mesh);
+  const auto vOff = labelVolumes(off.mesh), vOn = labelVolumes(on.mesh);
   for (const auto& [label, vol] : vOff) {
     ASSERT_TRUE(vOn.count(label)) << "label " << label;
     EXPECT_NEAR(vOn.at(label), vol, s.maxVolumeChange * vol) << "label " << label << ": volume changed";

@@ -44,6 +44,12 @@ class PanelWidgetTest : public QObject {
   std::unique_ptr<qFEMesherQualityHistogramWidget> histograms_;
 
   QString tmpFile(const QString& name) const { return QDir(tmp_).filePath(name); }
+  /// Whether the progress signals recorded so far name `stage`.
+  static bool reached(const QSignalSpy& progress, const QString& stage) {
+    for (const auto& args : progress)
+      if (args.at(0).toString() == stage) return true;
+    return false;
+  }
   QDoubleSpinBox* spin(const char* key) const {
     return qobject_cast<QDoubleSpinBox*>(panel_->parameterEditor(QString::fromLatin1(key)));
   }
@@ -220,13 +226,7 @@ class PanelWidgetTest : public QObject {
     QVERIFY(!panel_->runButton()->isEnabled());
     QVERIFY(panel_->cancelButton()->isEnabled());
     // Wait until the particle system runs (the GUI keeps processing events meanwhile).
-    QTRY_VERIFY_WITH_TIMEOUT(
-        [&] {
-          for (const auto& args : progress)
-            if (args.at(0).toString() == QLatin1String("ParticleSystem")) return true;
-          return false;
-        }(),
-        120000);
+    QTRY_VERIFY_WITH_TIMEOUT(reached(progress, QStringLiteral("ParticleSystem")), 120000);
     QVERIFY(panel_->isRunning());
     QVERIFY(panel_->progressBar()->format().contains(
         qFEMesherPanelWidget::stageTitle(QStringLiteral("ParticleSystem"))));
@@ -448,13 +448,7 @@ class PanelWidgetTest : public QObject {
     QCOMPARE(panel_->result().get(), first.get());
     for (const QString& ext : panel_->exportExtensions())
       QVERIFY2(panel_->exportButton(ext)->isEnabled(), qPrintable(ext));
-    QTRY_VERIFY_WITH_TIMEOUT(
-        [&] {
-          for (const auto& args : progress)
-            if (args.at(0).toString() == QLatin1String("ParticleSystem")) return true;
-          return false;
-        }(),
-        120000);
+    QTRY_VERIFY_WITH_TIMEOUT(reached(progress, QStringLiteral("ParticleSystem")), 120000);
     const QString during = tmpFile(QStringLiteral("during.mesh"));
     QVERIFY2(panel_->exportMesh(during), qPrintable(panel_->lastError()));
     panel_->cancel();

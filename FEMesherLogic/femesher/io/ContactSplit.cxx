@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/Status.h>
+#include <femesher/UnionFind.h>
 #include <femesher/io/ContactSplit.h>
 
 #include <algorithm>
@@ -7,7 +8,6 @@
 #include <cmath>
 #include <cstdlib>
 #include <map>
-#include <numeric>
 #include <set>
 #include <unordered_map>
 
@@ -54,20 +54,6 @@ std::array<int32_t, 3> faceKey(const std::array<int32_t, 4>& t, int opposite) {
   std::sort(k.begin(), k.end());
   return k;
 }
-
-struct Dsu {
-  std::vector<int> parent;
-  explicit Dsu(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
-  int find(int x) {
-    while (parent[size_t(x)] != x) x = parent[size_t(x)] = parent[size_t(parent[size_t(x)])];
-    return x;
-  }
-  void unite(int a, int b) {
-    a = find(a);
-    b = find(b);
-    if (a != b) parent[size_t(std::max(a, b))] = std::min(a, b);
-  }
-};
 
 }  // namespace
 
@@ -238,7 +224,7 @@ std::vector<ContactSurfacePair> splitContactInterfaces(
     if (!onAny[v]) continue;
     const int32_t* T = incident.data() + start[v];  // ascending tet indices
     const size_t n = start[v + 1] - start[v];
-    Dsu dsu(n);
+    UnionFind components(n);
     auto localOf = [&](int32_t t) {
       return int(std::lower_bound(T, T + n, t) - T);
     };
@@ -248,13 +234,13 @@ std::vector<ContactSurfacePair> splitContactInterfaces(
         if (tet[size_t(k)] == int32_t(v)) continue;  // the face opposite k contains v
         const size_t f = 4 * size_t(T[i]) + size_t(k);
         if (nb[f] < 0 || cut[f]) continue;
-        dsu.unite(int(i), localOf(int32_t(nb[f] / 4)));
+        components.unite(int(i), localOf(int32_t(nb[f] / 4)));
       }
     }
     std::vector<int32_t> copyOf(n, -1);  // per component root: the vertex it gets
     int copies = 0;
     for (size_t i = 0; i < n; ++i) {
-      const int r = dsu.find(int(i));
+      const int r = components.find(int(i));
       if (copyOf[size_t(r)] < 0) {
         if (r == 0) {
           copyOf[0] = int32_t(v);

@@ -2,9 +2,9 @@
 #include <CGAL/box_intersection_d.h>
 #include <CGAL/intersections.h>
 #include <femesher/RunContext.h>
+#include <femesher/UnionFind.h>
 #include <femesher/stages/internal/LocalDelaunayBuilder.h>
 
-#include <numeric>
 
 namespace femesher {
 
@@ -57,20 +57,6 @@ bool trianglesIntersect(const Triple& A, const Triple& B, const std::vector<Vec3
   const K::Segment_3 ea(pt(oa[0]), pt(oa[1])), eb(pt(ob[0]), pt(ob[1]));
   return CGAL::do_intersect(ea, tb) || CGAL::do_intersect(eb, ta);
 }
-
-struct UnionFind {
-  std::vector<int32_t> parent;
-  explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
-  int32_t find(int32_t x) {
-    while (parent[size_t(x)] != x) x = parent[size_t(x)] = parent[size_t(parent[size_t(x)])];
-    return x;
-  }
-  void unite(int32_t a, int32_t b) {
-    a = find(a);
-    b = find(b);
-    if (a != b) parent[size_t(std::max(a, b))] = std::min(a, b);
-  }
-};
 
 }  // namespace
 
