@@ -130,7 +130,8 @@ double faceDistance(const Editor& m, const OptimizeInterfaces& in, const std::ar
   return in.projectOntoInterface(a, b, q) ? norm(sub(q, g)) : -1.0;
 }
 
-bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, int& kind) {
+bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, int& kind,
+                           double offset) {
   kind = 0;
   // On the volume's box: only on one of its planes, between two materials; it then moves along
   // the line where their interface meets that plane.
@@ -143,6 +144,7 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
   kind = std::min(int(materials.size()), 4);
   const Vec3 lineDirection = kind == 3 ? tripleLineDirection(faces) : Vec3{0, 0, 0};
   if (kind == 3 && (!in.projectOntoJunction || !(norm(lineDirection) > 0))) return false;
+  if (offset > 0 && kind != 2) return false;
   MoveConstraint c;
   const Vec3 start = m.pts[size_t(v)];
   if (kind == 4) {
@@ -170,6 +172,21 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
     };
     const int a = materials[0], b = materials[1];
     c.project = [&in, a, b](Vec3& p) { return in.projectOntoInterface(a, b, p); };
+    if (offset > 0) {  // anywhere within `offset` of the interface
+      c.tangent = nullptr;
+      // Pulled back to 0.95 × offset along the projection; the projection (a Newton descent,
+      // not the exact nearest point) is then checked again from where the point ends.
+      c.project = [&in, a, b, offset](Vec3& p) {
+        Vec3 q = p;
+        if (!in.projectOntoInterface(a, b, q)) return false;
+        const Vec3 d = sub(p, q);
+        const double len = norm(d);
+        if (len > 0.95 * offset)
+          for (int k = 0; k < 3; ++k) p[k] = q[k] + d[k] * 0.95 * offset / len;
+        q = p;
+        return in.projectOntoInterface(a, b, q) && norm(sub(p, q)) <= offset;
+      };
+    }
     if (box != 0) {
       int axis = 0;
       while (!(box & (3 << (2 * axis)))) ++axis;
@@ -201,6 +218,24 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
         }
         return false;
       };
+      if (offset > 0) {  // anywhere in the plane within `offset` of the trace, as above
+        c.tangent = [e](const Vec3& d) {
+          const double x = dot(d, e);
+          return Vec3{d[0] - x * e[0], d[1] - x * e[1], d[2] - x * e[2]};
+        };
+        c.project = [onTrace = c.project, axis, plane, offset](Vec3& p) {
+          p[size_t(axis)] = plane;
+          Vec3 q = p;
+          if (!onTrace(q)) return false;
+          const Vec3 d = sub(p, q);
+          const double len = norm(d);
+          if (len > 0.95 * offset)
+            for (int k = 0; k < 3; ++k) p[k] = q[k] + d[k] * 0.95 * offset / len;
+          p[size_t(axis)] = plane;
+          q = p;
+          return onTrace(q) && norm(sub(p, q)) <= offset;
+        };
+      }
     }
   } else {
     const Vec3 t = lineDirection;

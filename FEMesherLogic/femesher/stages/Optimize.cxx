@@ -264,6 +264,9 @@ constexpr int kInsertingRounds = 2;
 /// Share of a material's volume that peeling may remove in all.
 constexpr double kPeelBudget = 4e-3;
 
+/// How far (share of the facet distance) the last-resort move may take a vertex off its interface.
+constexpr double kOffInterfaceShare = 0.5;
+
 /// True when a face (other than of tet t) on the outer boundary holds both u and v.
 bool outerEdge(const Editor& m, uint32_t t, int32_t u, int32_t v) {
   for (uint32_t s : m.around[size_t(u)]) {
@@ -665,6 +668,18 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
         ++r.splitEdges;
         changed = true;
       }
+      // Last resort for a tet whose vertices lie on interfaces: one of them may leave its
+      // interface by up to half the facet distance.
+      if (!changed && inserting && params.moveInterfaces && interfaces.enabled())
+        for (int32_t v : m.tets[t]) {
+          int kind = 0;
+          if (smoothInterfaceVertex(m, v, interfaces, kind, kOffInterfaceShare * interfaces.facetDistance)) {
+            ++r.offInterfaceMoves;
+            changed = true;
+            for (uint32_t s : m.around[size_t(v)]) fresh.push_back(s);
+            break;
+          }
+        }
       if (changed) ++changes;
       for (uint32_t s : fresh)
         if (m.alive[s] && m.quality(s) < params.targetMinDihedral) queue.push_back(s);
@@ -740,6 +755,7 @@ ReportCounts reportCounts(const OptimizeResult& r) {
           {"optimize_interface_vertex_moves", double(r.interfaceVertices)},
           {"optimize_triple_line_vertex_moves", double(r.tripleLineVertices)},
           {"optimize_junction_vertex_moves", double(r.junctionVertices)},
+          {"optimize_off_interface_moves", double(r.offInterfaceMoves)},
           {"optimize_interface_flips", double(r.interfaceFlips)},
           {"optimize_peeled_tets", double(r.peeledTets)},
           {"optimize_relabelled_tets", double(r.relabelledTets)},

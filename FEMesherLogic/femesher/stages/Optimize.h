@@ -57,6 +57,12 @@
 ///    first, are split at their midpoint together with every tet around the edge (any
 ///    material, so interface triangles on it are halved in their own plane) and the midpoint
 ///    moves by its class like any vertex above; kept when the worst tet around the edge rises.
+///  - off-interface move, the last resort of the inserting rounds: a vertex of the tet with two
+///    materials around may leave its interface, to anywhere within half the facet distance of
+///    it (pulled back to that distance; on a plane of the volume's box it stays in the plane,
+///    within that distance of the interface's trace on it), when that raises the
+///    worst tet of its star (the same face-distance and volume bounds as the moves along it).
+///    Four vertices on interfaces that are nearly coplanar leave no other way out.
 /// Then the interior is coarsened (coarsenMinDihedral, with a size function `sizeAt`): interior
 /// vertices with an edge shorter than coarsenShortEdge × the size are collapsed onto a neighbour
 /// when the new tets stay at or above min(coarsenMinDihedral, the star's worst) (see below).
@@ -166,6 +172,7 @@ struct OptimizeResult {
   size_t interfaceVertices = 0;   ///< interface vertex moves (two materials)
   size_t tripleLineVertices = 0;  ///< triple-line vertex moves
   size_t junctionVertices = 0;    ///< moves of junction points (four or more materials)
+  size_t offInterfaceMoves = 0;   ///< last-resort moves of an interface vertex off its interface
   size_t interfaceFlips = 0;      ///< interface edge flips
   size_t peeledTets = 0;        ///< flat boundary tets removed
   size_t relabelledTets = 0;    ///< flat interface tets given to the neighbouring material
