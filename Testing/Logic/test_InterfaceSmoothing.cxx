@@ -130,12 +130,12 @@ size_t expectInterfaceInvariants(const Optimized& o, const std::string& name) {
     if (boxVertex) continue;
     ++moved;
     if (m.size() == 2 && !(std::fabs(field.eval(m[0], l) - field.eval(m[1], l)) < tol)) {
-      // The optimizer's last resort (Optimize.h, off-interface move): within half the facet
-      // distance of the interface, and only as often as it says it did so.
+      // The optimizer's last resort (Optimize.h, off-interface move): within the facet distance
+      // of the interface, and only as often as it says it did so.
       ++offInterface;
       Vec3 q = o.after.points[i];
       EXPECT_TRUE(interfaces.projectOntoInterface(m[0], m[1], q)) << "vertex " << i;
-      EXPECT_LE(norm(sub(q, o.after.points[i])), 0.5 * interfaces.facetDistance + 1e-9)
+      EXPECT_LE(norm(sub(q, o.after.points[i])), interfaces.facetDistance)
           << "vertex " << i << " too far off the interface of " << m[0] << " and " << m[1];
       continue;
     }

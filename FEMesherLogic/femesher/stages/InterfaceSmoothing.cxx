@@ -247,14 +247,15 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
     c.project = [&in, abc](Vec3& p) { return in.projectOntoJunction(abc, p); };
   }
   // Each interface triangle may end at most max(its distance now, a quarter of the facet
-  // distance) from its interface, and never beyond the facet distance unless it is already.
+  // distance) from its interface (0.95 × the facet distance for an off-interface move), and
+  // never beyond the facet distance unless it is already.
   // Around a junction point, a triangle whose interface cannot be found (another material leads
   // at its centroid) is bounded by the quarter facet distance the point may move (bound -1).
   std::vector<double> bound(faces.size());
   for (size_t i = 0; i < faces.size(); ++i) {
     bound[i] = centroidDistance(m, in, faces[i]);
     if (bound[i] < 0 && kind != 4) return false;
-    if (bound[i] >= 0) bound[i] = std::max(bound[i], kFacetShare * in.facetDistance);
+    if (bound[i] >= 0) bound[i] = std::max(bound[i], (offset > 0 ? 0.95 : kFacetShare) * in.facetDistance);
   }
   // The net volume the moves add to or take from a material stays within its budget.
   std::vector<std::pair<int, double>> starVolume;

@@ -265,7 +265,7 @@ constexpr int kInsertingRounds = 2;
 constexpr double kPeelBudget = 4e-3;
 
 /// How far (share of the facet distance) the last-resort move may take a vertex off its interface.
-constexpr double kOffInterfaceShare = 0.5;
+constexpr double kOffInterfaceShare = 0.95;
 
 /// True when a face (other than of tet t) on the outer boundary holds both u and v.
 bool outerEdge(const Editor& m, uint32_t t, int32_t u, int32_t v) {
@@ -669,7 +669,7 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
         changed = true;
       }
       // Last resort for a tet whose vertices lie on interfaces: one of them may leave its
-      // interface by up to half the facet distance.
+      // interface by up to 0.95 × the facet distance.
       if (!changed && inserting && params.moveInterfaces && interfaces.enabled())
         for (int32_t v : m.tets[t]) {
           int kind = 0;

@@ -58,10 +58,11 @@
 ///    material, so interface triangles on it are halved in their own plane) and the midpoint
 ///    moves by its class like any vertex above; kept when the worst tet around the edge rises.
 ///  - off-interface move, the last resort of the inserting rounds: a vertex of the tet with two
-///    materials around may leave its interface, to anywhere within half the facet distance of
-///    it (pulled back to that distance; on a plane of the volume's box it stays in the plane,
-///    within that distance of the interface's trace on it), when that raises the
-///    worst tet of its star (the same face-distance and volume bounds as the moves along it).
+///    materials around may leave its interface, to anywhere within 0.95 × the facet distance
+///    of it (pulled back to that distance; on a plane of the volume's box it stays in the plane,
+///    within that distance of the interface's trace on it), when that raises the worst tet of
+///    its star; its interface triangles' centroids stay within 0.95 × the facet distance of the
+///    interface (or no farther than they were) and the volume bound of the moves along it holds.
 ///    Four vertices on interfaces that are nearly coplanar leave no other way out.
 /// Then the interior is coarsened (coarsenMinDihedral, with a size function `sizeAt`): interior
 /// vertices with an edge shorter than coarsenShortEdge × the size are collapsed onto a neighbour
