@@ -286,6 +286,15 @@ std::string runSummary(const PipelineResult& r, const std::vector<std::string>& 
                   r.fidelity.meshToLabels.p99, r.fidelity.labelsToMesh.p99, r.fidelity.voxelSize);
     add("Boundary p99", line);
   }
+  std::map<std::string, double> counts(r.counts.begin(), r.counts.end());
+  if (counts.count("quadratic_curved_nodes")) {
+    std::snprintf(line, sizeof line,
+                  "%.0f mid-edge nodes on interfaces curved (%.0f part of the way), %.0f kept "
+                  "straight; worst scaled Jacobian %.3f",
+                  counts["quadratic_curved_nodes"], counts["quadratic_partly_curved_nodes"],
+                  counts["quadratic_straight_kept"], counts["quadratic_worst_scaled_jacobian"]);
+    add("10-node tets", line);
+  }
   for (const auto& c : r.contacts) {
     std::snprintf(line, sizeof line, "%d:%d split, %zu interface triangles, %zu nodes duplicated",
                   c.labelA, c.labelB, c.facesA.size(), c.duplicatedNodes);
@@ -304,6 +313,7 @@ int writeRunOutputs(const PipelineResult& result, const MeshingParameters& param
   eo.provenance = "femesher " FEMESHER_VERSION " from " + source;
   eo.contacts = result.contacts;
   eo.nodeSets = result.boxNodeSets;
+  eo.midEdgeNodes = result.midEdgeNodes;
   std::vector<std::string> exportWarnings;
   for (const auto& out : o.outputs) {
     if (Status s = writeMesh(result.mesh, out, eo); !s) {

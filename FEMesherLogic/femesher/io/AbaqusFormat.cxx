@@ -85,7 +85,7 @@ Status writeInp(const TetMesh& m, const std::string& path, const ExportOptions& 
   const SolverDeckTables tables(m);
   const auto& [byLabel, tris, patches, elset] = tables;
   const bool quadratic = o.elementOrder == 2;
-  const QuadraticTetMesh q = quadratic ? quadraticTets(m) : QuadraticTetMesh{};
+  const QuadraticTetMesh q = quadratic ? quadraticTets(m, o.midEdgeNodes.get()) : QuadraticTetMesh{};
   const std::vector<Vec3>& points = quadratic ? q.points : m.points;
   return writeText(path, [&](std::FILE* f) {
     // CalculiX reads at most 132 characters per line.
@@ -116,8 +116,10 @@ Status writeInp(const TetMesh& m, const std::string& path, const ExportOptions& 
                    "** NSET BOX_XMIN..BOX_ZMAX: nodes on the faces of the scan's box (X, Y, Z = the\n"
                    "**   image's voxel axes i, j, k; MIN at the first voxel's outer edge).\n");
     if (quadratic)
-      std::fprintf(f, "** C3D10: nodes after %zu are mid-edge nodes at the straight edge midpoints.\n",
-                   q.cornerCount);
+      std::fprintf(f, "** C3D10: nodes after %zu are mid-edge nodes, %s.\n", q.cornerCount,
+                   o.midEdgeNodes && !o.midEdgeNodes->empty()
+                       ? "those of interface and boundary edges on the smooth interfaces"
+                       : "at the straight edge midpoints");
     std::fprintf(f, "*NODE, NSET=ALLNODES\n");
     for (size_t i = 0; i < points.size(); ++i)
       std::fprintf(f, "%zu, %s, %s, %s\n", i + 1, inpReal(points[i][0]).c_str(),

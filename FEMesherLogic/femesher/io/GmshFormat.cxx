@@ -54,7 +54,7 @@ int mshNodesPerElement(int type) {
 
 Status writeMsh(const TetMesh& m, const std::string& path, const ExportOptions& o) {
   const bool quadratic = o.elementOrder == 2;
-  const QuadraticTetMesh q = quadratic ? quadraticTets(m) : QuadraticTetMesh{};
+  const QuadraticTetMesh q = quadratic ? quadraticTets(m, o.midEdgeNodes.get()) : QuadraticTetMesh{};
   const std::vector<Vec3>& points = quadratic ? q.points : m.points;
   const auto byLabel = tetsByLabel(m);
   const auto labels = meshLabels(m);

@@ -24,7 +24,8 @@
 /// `ExportOptions::nodeSets` (the box-face node sets); see ExportOptions.
 /// All writers are atomic (temporary file + rename). Coordinates are written in LPS mm.
 /// With `ExportOptions::elementOrder` = 2 the .inp, .msh, .vtu, .vtk and .feb writers write
-/// 10-node tets (QuadraticTets.h: one straight-edge midpoint node per unique edge, node order of
+/// 10-node tets (QuadraticTets.h: one node per unique edge, at its midpoint or where
+/// `ExportOptions::midEdgeNodes` puts it on the smooth interfaces, node order of
 /// each format: C3D10, Gmsh type 11, VTK_QUADRATIC_TETRA, FEBio tet10), the .msh its interface
 /// triangles as 6-node triangles (type 9), the .feb its surfaces as tri6 and its NodeSets with
 /// the mid-edge nodes; the .inp NSET BOUNDARY holds the boundary's mid-edge nodes too (its
@@ -35,6 +36,7 @@
 #include <femesher/Status.h>
 #include <femesher/Types.h>
 #include <femesher/io/ContactSplit.h>
+#include <femesher/io/QuadraticTets.h>
 
 #include <map>
 #include <string>
@@ -53,6 +55,10 @@ struct ExportOptions {
   std::string provenance;
   /// 1: 4-node tets; 2: 10-node tets (parameter `element_order`; see the file comment).
   int elementOrder = 1;
+  /// With element order 2: the curved mid-edge nodes of the mesh being written
+  /// (PipelineResult::midEdgeNodes, QuadraticCurving.h); every writer puts those nodes there and
+  /// the others at their edge's midpoint. Null: every mid-edge node straight.
+  std::shared_ptr<const MidEdgePositions> midEdgeNodes;
   /// Interfaces split for contact (`splitContactInterfaces`, PipelineResult::contacts) of the
   /// mesh being written. .inp: element-face *SURFACEs CONTACT_<a>_<b>_S (faces of a's elements,
   /// the dependent side) and CONTACT_<a>_<b>_M (b's, the independent side), a *SURFACE

@@ -40,7 +40,8 @@ class VtkMessages {
 
 Status writeVtu(const TetMesh& m, const std::string& path, const ExportOptions& o) {
   vtkNew<vtkUnstructuredGrid> ug;
-  meshToVtkGrid(m, ug, {VtkFrame::LPS, /*fieldData=*/true, o.provenance, o.elementOrder});
+  meshToVtkGrid(m, ug, {VtkFrame::LPS, /*fieldData=*/true, o.provenance, o.elementOrder,
+                              o.midEdgeNodes.get()});
   return writeAtomically(path, [&](const std::string& tmp) {
     vtkNew<vtkXMLUnstructuredGridWriter> w;
     VtkMessages messages(w);
@@ -57,7 +58,7 @@ Status writeVtu(const TetMesh& m, const std::string& path, const ExportOptions& 
 /// reads to place the mesh; read by ParaView and meshio too.
 Status writeLegacyVtk(const TetMesh& m, const std::string& path, const ExportOptions& o) {
   vtkNew<vtkUnstructuredGrid> ug;
-  meshToVtkGrid(m, ug, {VtkFrame::LPS, /*fieldData=*/false, "", o.elementOrder});
+  meshToVtkGrid(m, ug, {VtkFrame::LPS, /*fieldData=*/false, "", o.elementOrder, o.midEdgeNodes.get()});
   return writeAtomically(path, [&](const std::string& tmp) {
     vtkNew<vtkUnstructuredGridWriter> w;
     VtkMessages messages(w);
