@@ -205,8 +205,8 @@ QuadraticCurvingResult curveMidEdgeNodes(const TetMesh& mesh, const OptimizeInte
       ++r.straightKept;
       continue;
     }
-    if (norm(move) <= 1e-12 * length) {  // on the surface already
-      ++r.curvedNodes;
+    if (norm(move) <= 1e-12 * length) {  // on the surface already (a flat interface)
+      ++r.onInterfaceNodes;
       continue;
     }
     inc.around(u, v, tets);
@@ -253,6 +253,7 @@ ReportCounts reportCounts(const QuadraticCurvingResult& r) {
           {"quadratic_curved_nodes", double(r.curvedNodes)},
           {"quadratic_partly_curved_nodes", double(r.partlyCurvedNodes)},
           {"quadratic_straight_kept", double(r.straightKept)},
+          {"quadratic_on_interface_nodes", double(r.onInterfaceNodes)},
           {"quadratic_triple_line_nodes", double(r.tripleLineNodes)},
           {"quadratic_box_plane_nodes", double(r.boxPlaneNodes)},
           {"quadratic_mean_move_mm", r.meanMove},

@@ -60,6 +60,7 @@ struct QuadraticCurvingResult {
   size_t curvedNodes = 0;      ///< moved the whole way onto their interface (or triple line)
   size_t partlyCurvedNodes = 0;///< moved part of the way (a half, quarter or eighth)
   size_t straightKept = 0;     ///< surface nodes left straight (projection failed, or validity)
+  size_t onInterfaceNodes = 0; ///< surface nodes whose midpoint is on the interface already (flat)
   size_t tripleLineNodes = 0;  ///< nodes moved (wholly or partly) along a triple line
   size_t boxPlaneNodes = 0;    ///< nodes moved (wholly or partly) along a trace on a box plane
   double meanMove = 0;         ///< mean distance (mesh units) the moved nodes moved
@@ -75,7 +76,8 @@ QuadraticCurvingResult curveMidEdgeNodes(const TetMesh& mesh, const OptimizeInte
                                          const QuadraticCurvingParameters& params, RunContext& ctx);
 
 /// Report figures: quadratic_mid_edge_nodes, quadratic_surface_nodes, quadratic_curved_nodes,
-/// quadratic_partly_curved_nodes, quadratic_straight_kept, quadratic_triple_line_nodes,
+/// quadratic_partly_curved_nodes, quadratic_straight_kept, quadratic_on_interface_nodes (the
+/// four add up to the surface nodes), quadratic_triple_line_nodes,
 /// quadratic_box_plane_nodes, quadratic_mean_move_mm, quadratic_max_move_mm,
 /// quadratic_min_jacobian_fraction (smallest det J over the straight tet's), and
 /// quadratic_worst_scaled_jacobian (smallest over largest det J of an element, 1 = straight).
