@@ -96,8 +96,24 @@ Status checkExportable(const std::string& path, const ExportOptions& options);
 /// WriteFailed for I/O errors. Never leaves a partial file.
 Status writeMesh(const TetMesh& mesh, const std::string& path, const ExportOptions& options = {});
 
-/// Read a tet mesh written by FEMesher (.vtu, .vtk; .msh 4.1 ASCII and .mesh too). Used by
-/// `femesher quality`. Errors: FileNotFound, UnreadableFile (wrong format/version), CorruptFile.
+/// A mesh file as read: its corner tets and, for 10-node tets, where their mid-edge nodes are.
+struct MeshFile {
+  /// The tets by their corners; `points` holds the corner nodes only (mid-edge nodes dropped,
+  /// corners renumbered in file order).
+  TetMesh mesh;
+  int elementOrder = 1;  ///< 2 when the file holds 10-node tets
+  /// Order 2: the mid-edge node of every edge of `mesh` (by tetEdgeKey), as in the file.
+  MidEdgePositions midEdgeNodes;
+};
+
+/// Read a tet mesh written by FEMesher (.vtu, .vtk, .inp; .msh 4.1 ASCII and .mesh too), of
+/// 4-node or 10-node tets (.vtu/.vtk VTK_QUADRATIC_TETRA, .msh type 11, .inp C3D10; Medit has
+/// none). Used by `femesher quality` and `optimize`. Errors: FileNotFound, UnreadableFile (wrong
+/// format/version, other element types, 4-node and 10-node tets mixed), CorruptFile (among
+/// others: an edge with two different mid-edge nodes, a node both a corner and a mid-edge node).
+Result<MeshFile> readMeshFile(const std::string& path);
+
+/// readMeshFile's corner mesh (a 10-node file's mid-edge nodes dropped).
 Result<TetMesh> readMesh(const std::string& path);
 
 }  // namespace femesher

@@ -72,7 +72,7 @@ Status writeLegacyVtk(const TetMesh& m, const std::string& path, const ExportOpt
   });
 }
 
-Result<TetMesh> readVtu(const std::string& path) {
+Result<TetMesh> readVtu(const std::string& path, std::vector<std::array<int32_t, 6>>* midNodes) {
   vtkNew<vtkXMLUnstructuredGridReader> r;
   VtkMessages messages(r);
   r->SetReaderErrorObserver(messages.command());
@@ -85,10 +85,10 @@ Result<TetMesh> readVtu(const std::string& path) {
     return fail(ErrorCode::CorruptFile, path,
                 "VTK could not decode it (truncated or damaged?)" +
                     (messages.text.empty() ? std::string(".") : ": " + oneLine(messages.text.substr(0, 300))));
-  return vtkGridToMesh(r->GetOutput(), path);
+  return vtkGridToMesh(r->GetOutput(), path, VtkFrame::LPS, midNodes);
 }
 
-Result<TetMesh> readLegacyVtk(const std::string& path) {
+Result<TetMesh> readLegacyVtk(const std::string& path, std::vector<std::array<int32_t, 6>>* midNodes) {
   vtkNew<vtkUnstructuredGridReader> r;
   VtkMessages messages(r);
   r->SetFileName(path.c_str());
@@ -98,7 +98,7 @@ Result<TetMesh> readLegacyVtk(const std::string& path) {
   if (!messages.text.empty())
     return fail(ErrorCode::CorruptFile, path,
                 "VTK could not decode it: " + oneLine(messages.text.substr(0, 300)));
-  return vtkGridToMesh(r->GetOutput(), path);
+  return vtkGridToMesh(r->GetOutput(), path, VtkFrame::LPS, midNodes);
 }
 
 }  // namespace femesher::meshio
