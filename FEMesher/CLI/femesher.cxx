@@ -345,7 +345,8 @@ int writeRunOutputs(const PipelineResult& result, const MeshingParameters& param
 /// What `optimize` does with a mesh of 10-node tets: it improves their corner tets; the outputs
 /// are 4-node tets unless element_order=2 asks for 10-node ones, made anew from the improved mesh.
 std::string quadraticInputNote(const std::string& meshPath, int elementOrder) {
-  return "note: " + meshPath + " holds 10-node tetrahedra; Optimize works on their corner (4-node) " +
+  return "note: " + meshPath +
+         " holds 10-node tetrahedra; Optimize works on their corner (4-node) " +
          "tets and the file's mid-edge nodes are dropped. " +
          (elementOrder == 2
               ? "element_order=2: the outputs get new mid-edge nodes, curved onto the label map's "
@@ -463,10 +464,11 @@ int runQuality(const std::string& meshPath, const std::string& labelsPath,
                        ",\n\"quality\": " + qualityReportToJson(q, true);
     if (file->elementOrder == 2) {
       char buf[256];
-      std::snprintf(buf, sizeof buf,
-                    ",\n\"quadratic\": {\"quality_of\": \"corner tets\", \"min_jacobian_fraction\": "
-                    "%.17g, \"worst_scaled_jacobian\": %.17g, \"folded_elements\": %zu}",
-                    worst.minOverStraight, worst.minOverMax, folded);
+      std::snprintf(
+          buf, sizeof buf,
+          ",\n\"quadratic\": {\"quality_of\": \"corner tets\", \"min_jacobian_fraction\": "
+          "%.17g, \"worst_scaled_jacobian\": %.17g, \"folded_elements\": %zu}",
+          worst.minOverStraight, worst.minOverMax, folded);
       text += buf;
     }
     if (withFidelity) text += ",\n\"fidelity\": " + fidelityReportToJson(fr);
@@ -475,11 +477,12 @@ int runQuality(const std::string& meshPath, const std::string& labelsPath,
   } else {
     std::printf("%s: %zu vertices, %zu tets\n", meshPath.c_str(), mesh->points.size(), mesh->tets.size());
     if (file->elementOrder == 2)
-      std::printf("10-node tets: the figures below are of their corner (4-node) tets. Quadratic "
-                  "Jacobian at the 4 corners, 6 mid-edge nodes and centroid: smallest det J %.4f x "
-                  "the straight-sided value, worst scaled Jacobian (min/max det J) %.4f, %zu "
-                  "element(s) folded (det J <= 0)\n",
-                  worst.minOverStraight, worst.minOverMax, folded);
+      std::printf(
+          "10-node tets: the figures below are of their corner (4-node) tets. Quadratic "
+          "Jacobian at the 4 corners, 6 mid-edge nodes and centroid: smallest det J %.4f x "
+          "the straight-sided value, worst scaled Jacobian (min/max det J) %.4f, %zu "
+          "element(s) folded (det J <= 0)\n",
+          worst.minOverStraight, worst.minOverMax, folded);
     std::fputs(qualityReportToText(q).c_str(), stdout);
     if (withFidelity) std::fputs(fidelityReportToText(fr).c_str(), stdout);
   }
@@ -705,7 +708,8 @@ int main(int argc, char** argv) {
   std::string qualityMesh, qualityLabels, qualityRaster;
   bool qualityJson = false;
   auto* quality = app.add_subcommand("quality", "Element quality (and fidelity) of a mesh");
-  quality->add_option("mesh", qualityMesh, "Mesh (.vtu .vtk .msh .inp .mesh; 4- or 10-node tets)")->required();
+  quality->add_option("mesh", qualityMesh, "Mesh (.vtu .vtk .msh .inp .mesh; 4- or 10-node tets)")
+      ->required();
   quality->add_option("--labels", qualityLabels, "Label map to compare with (fidelity)");
   quality->add_option("--raster", qualityRaster,
                       "Write the mesh sampled on the label map's voxel centres (label of the tet "
@@ -748,7 +752,8 @@ int main(int argc, char** argv) {
   MeshOptions optOpts;
   auto* optimizeCmd = app.add_subcommand(
       "optimize", "Improve an existing labelled tet mesh against the label map it was made from");
-  optimizeCmd->add_option("mesh", optMesh, "Mesh (.vtu .vtk .msh .inp .mesh; 4- or 10-node tets)")->required();
+  optimizeCmd->add_option("mesh", optMesh, "Mesh (.vtu .vtk .msh .inp .mesh; 4- or 10-node tets)")
+      ->required();
   optimizeCmd->add_option("--labels", optLabels, "The label map the mesh was made from")->required();
   optimizeCmd->add_option("-o,--output", optOpts.outputs, "Improved mesh; repeat for several formats")
       ->required();

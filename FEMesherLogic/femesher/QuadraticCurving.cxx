@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Curved mid-edge nodes of 10-node tets: onto the smooth interfaces where every element stays valid.
+// Curved mid-edge nodes of 10-node tets: onto the smooth interfaces where every element stays
+// valid.
 #include <femesher/QuadraticCurving.h>
 #include <femesher/RunContext.h>
 #include <femesher/VecMath.h>
@@ -123,8 +124,8 @@ std::array<Vec3, 10> tetNodes(const TetMesh& m, size_t t, const MidEdgePositions
       continue;
     }
     const auto it = curved.find(e);
-    x[4 + k] = it != curved.end() ? it->second
-                                  : scale(add(m.points[size_t(a)], m.points[size_t(b)]), 0.5);
+    x[4 + k] =
+        it != curved.end() ? it->second : scale(add(m.points[size_t(a)], m.points[size_t(b)]), 0.5);
   }
   return x;
 }
@@ -200,7 +201,8 @@ QuadraticCurvingResult curveMidEdgeNodes(const TetMesh& mesh, const OptimizeInte
     const Vec3 move = sub(p, mid);
     // The surface stage put every interface edge's midpoint within the facet distance of its
     // interface: a projection that lands much farther found another part of it.
-    const double reach = in.facetDistance > 0 ? std::min(0.5 * length, 2 * in.facetDistance) : 0.5 * length;
+    const double reach =
+        in.facetDistance > 0 ? std::min(0.5 * length, 2 * in.facetDistance) : 0.5 * length;
     if (!ok || norm(move) > reach) {
       ++r.straightKept;
       continue;

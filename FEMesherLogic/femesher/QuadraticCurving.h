@@ -55,16 +55,16 @@ struct QuadraticCurvingParameters {
 struct QuadraticCurvingResult {
   /// The curved mid-edge nodes (in the frame of the mesh given), by tetEdgeKey.
   MidEdgePositions nodes;
-  size_t midEdgeNodes = 0;     ///< unique edges of the mesh (every mid-edge node)
-  size_t surfaceNodes = 0;     ///< nodes of edges on an interface, the outer boundary or the box
-  size_t curvedNodes = 0;      ///< moved the whole way onto their interface (or triple line)
-  size_t partlyCurvedNodes = 0;///< moved part of the way (a half, quarter or eighth)
-  size_t straightKept = 0;     ///< surface nodes left straight (projection failed, or validity)
-  size_t onInterfaceNodes = 0; ///< surface nodes whose midpoint is on the interface already (flat)
-  size_t tripleLineNodes = 0;  ///< nodes moved (wholly or partly) along a triple line
-  size_t boxPlaneNodes = 0;    ///< nodes moved (wholly or partly) along a trace on a box plane
-  double meanMove = 0;         ///< mean distance (mesh units) the moved nodes moved
-  double maxMove = 0;          ///< the largest
+  size_t midEdgeNodes = 0;       ///< unique edges of the mesh (every mid-edge node)
+  size_t surfaceNodes = 0;       ///< nodes of edges on an interface, the outer boundary or the box
+  size_t curvedNodes = 0;        ///< moved the whole way onto their interface (or triple line)
+  size_t partlyCurvedNodes = 0;  ///< moved part of the way (a half, quarter or eighth)
+  size_t straightKept = 0;       ///< surface nodes left straight (projection failed, or validity)
+  size_t onInterfaceNodes = 0;  ///< surface nodes whose midpoint is on the interface already (flat)
+  size_t tripleLineNodes = 0;   ///< nodes moved (wholly or partly) along a triple line
+  size_t boxPlaneNodes = 0;     ///< nodes moved (wholly or partly) along a trace on a box plane
+  double meanMove = 0;          ///< mean distance (mesh units) the moved nodes moved
+  double maxMove = 0;           ///< the largest
   /// The worst figures of the quadratic elements (straight ones count as 1).
   Tet10Jacobian worst;
 };

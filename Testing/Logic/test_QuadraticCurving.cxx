@@ -9,21 +9,21 @@
 #include <femesher/io/MeshIO.h>
 #include <gtest/gtest.h>
 
-#include "TestShapes.h"
-
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
 
+#include "TestShapes.h"
+
 namespace fs = std::filesystem;
 using namespace femesher;
 
 namespace {
 
-constexpr int kN = 6;         // cubes per side, edge 1 mm
-constexpr double kR = 2.3;    // sphere radius, mm
+constexpr int kN = 6;       // cubes per side, edge 1 mm
+constexpr double kR = 2.3;  // sphere radius, mm
 
 /// Material 1 inside the sphere of radius kR around `c`, 2 outside; the cube is the volume's box.
 /// As a mesher would, the interface vertices near the sphere are put on it (radially; a vertex
@@ -103,13 +103,15 @@ TEST(QuadraticCurving, InterfaceNodesOnTheSphereElementsValid) {
   EXPECT_EQ(r.midEdgeNodes, q.points.size() - m.points.size());
   EXPECT_GT(r.curvedNodes, 50u);
   EXPECT_EQ(r.nodes.size(), r.curvedNodes + r.partlyCurvedNodes);
-  EXPECT_EQ(r.surfaceNodes, r.curvedNodes + r.partlyCurvedNodes + r.straightKept + r.onInterfaceNodes);
+  EXPECT_EQ(r.surfaceNodes,
+            r.curvedNodes + r.partlyCurvedNodes + r.straightKept + r.onInterfaceNodes);
   // Only interface edges move (the cube's faces are the box: flat, exact).
   const auto tris = extractInterfaces(m);
   std::set<uint64_t> interfaceEdges;
   for (const auto& f : tris)
     if (f.labelB != kExteriorLabel)
-      for (int k = 0; k < 3; ++k) interfaceEdges.insert(tetEdgeKey(f.v[size_t(k)], f.v[size_t((k + 1) % 3)]));
+      for (int k = 0; k < 3; ++k)
+        interfaceEdges.insert(tetEdgeKey(f.v[size_t(k)], f.v[size_t((k + 1) % 3)]));
   for (const auto& [key, p] : r.nodes) EXPECT_TRUE(interfaceEdges.count(key)) << key;
   // Fully curved nodes lie on the sphere; on average far closer than the straight midpoints.
   const auto [straight, bent] = meanSphereDistance(m, r.nodes, c);

@@ -178,7 +178,6 @@ TEST(QuadraticTets, WritersUseTenNodeElements) {
   fs::remove_all(dir);
 }
 
-
 TEST(QuadraticTets, ReadersGiveBackCornersAndMidEdgeNodes) {
   // Written with some mid-edge nodes moved off their midpoints, read back from every format that
   // holds 10-node tets: the same corner mesh and the same mid-edge node of every edge.
@@ -209,11 +208,13 @@ TEST(QuadraticTets, ReadersGiveBackCornersAndMidEdgeNodes) {
     // The same tets with the same labels (.inp and .msh group them by material).
     std::multiset<std::pair<std::array<int32_t, 4>, int32_t>> want, got;
     for (size_t t = 0; t < m.tets.size(); ++t) want.insert({m.tets[t], m.tetLabels[t]});
-    for (size_t t = 0; t < r->mesh.tets.size(); ++t) got.insert({r->mesh.tets[t], r->mesh.tetLabels[t]});
+    for (size_t t = 0; t < r->mesh.tets.size(); ++t)
+      got.insert({r->mesh.tets[t], r->mesh.tetLabels[t]});
     EXPECT_EQ(got, want) << name;
     double err = 0;
     for (size_t p = 0; p < m.points.size(); ++p)
-      for (size_t c = 0; c < 3; ++c) err = std::max(err, std::fabs(r->mesh.points[p][c] - m.points[p][c]));
+      for (size_t c = 0; c < 3; ++c)
+        err = std::max(err, std::fabs(r->mesh.points[p][c] - m.points[p][c]));
     ASSERT_EQ(r->midEdgeNodes.size(), q.edgeNodes.size()) << name;
     for (const auto& [key, node] : q.edgeNodes)
       for (size_t c = 0; c < 3; ++c)

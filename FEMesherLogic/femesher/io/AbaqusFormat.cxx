@@ -89,7 +89,8 @@ Status writeInp(const TetMesh& m, const std::string& path, const ExportOptions& 
   const SolverDeckTables tables(m);
   const auto& [byLabel, tris, patches, elset] = tables;
   const bool quadratic = o.elementOrder == 2;
-  const QuadraticTetMesh q = quadratic ? quadraticTets(m, o.midEdgeNodes.get()) : QuadraticTetMesh{};
+  const QuadraticTetMesh q =
+      quadratic ? quadraticTets(m, o.midEdgeNodes.get()) : QuadraticTetMesh{};
   const std::vector<Vec3>& points = quadratic ? q.points : m.points;
   return writeText(path, [&](std::FILE* f) {
     // CalculiX reads at most 132 characters per line.
@@ -243,7 +244,8 @@ Result<TetMesh> readInp(const std::string& path, std::vector<std::array<int32_t,
   std::vector<std::array<long long, 10>> raw;
   std::map<int32_t, std::string> names;
   int32_t namedLabel = 0;
-  const std::regex labelComment(R"(^\*\*   label (-?\d+) -> ELSET=)"), nameComment(R"(^\*\*     name '(.*)'$)");
+  const std::regex labelComment(R"(^\*\*   label (-?\d+) -> ELSET=)"),
+      nameComment(R"(^\*\*     name '(.*)'$)");
   const std::regex elset(R"(ELSET\s*=\s*([MN])(\d+)_)", std::regex::icase);
   std::string line;
   size_t lineNo = 0;
@@ -252,8 +254,10 @@ Result<TetMesh> readInp(const std::string& path, std::vector<std::array<int32_t,
     if (!line.empty() && line.back() == '\r') line.pop_back();
     std::smatch g;
     if (line.rfind("**", 0) == 0) {
-      if (std::regex_search(line, g, labelComment)) namedLabel = std::stoi(g[1]);
-      else if (std::regex_search(line, g, nameComment)) names[namedLabel] = g[1];
+      if (std::regex_search(line, g, labelComment))
+        namedLabel = std::stoi(g[1]);
+      else if (std::regex_search(line, g, nameComment))
+        names[namedLabel] = g[1];
       continue;
     }
     const std::string where = "line " + std::to_string(lineNo);
@@ -262,20 +266,25 @@ Result<TetMesh> readInp(const std::string& path, std::vector<std::array<int32_t,
       std::string up = line;
       for (char& c : up) c = char(std::toupper(static_cast<unsigned char>(c)));
       section = Section::Other;
-      if (up.rfind("*NODE", 0) == 0 && up.rfind("*NODE PRINT", 0) != 0 && up.rfind("*NODE FILE", 0) != 0) {
+      if (up.rfind("*NODE", 0) == 0 && up.rfind("*NODE PRINT", 0) != 0 &&
+          up.rfind("*NODE FILE", 0) != 0) {
         section = Section::Node;
       } else if (up.rfind("*ELEMENT", 0) == 0) {
         const bool c3d4 = up.find("TYPE=C3D4") != std::string::npos;
         const bool c3d10 = up.find("TYPE=C3D10") != std::string::npos;
         if (!c3d4 && !c3d10)
           return fail(ErrorCode::UnreadableFile, path,
-                      where + ": only C3D4 and C3D10 elements are supported (" + oneLine(line).substr(0, 80) + ").");
+                      where + ": only C3D4 and C3D10 elements are supported (" +
+                          oneLine(line).substr(0, 80) + ").");
         if (c3d10 && !midNodes)
-          return fail(ErrorCode::UnreadableFile, path, where + ": 10-node tetrahedra are not supported here.");
-        if (!std::regex_search(up, g, elset))
           return fail(ErrorCode::UnreadableFile, path,
-                      where + ": the element set is not named M<label>_... as FEMesher writes it, so the "
-                              "elements have no material.");
+                      where + ": 10-node tetrahedra are not supported here.");
+        if (!std::regex_search(up, g, elset))
+          return fail(
+              ErrorCode::UnreadableFile, path,
+              where +
+                  ": the element set is not named M<label>_... as FEMesher writes it, so the "
+                  "elements have no material.");
         label = int32_t(std::stol(g[2])) * (g[1] == "N" ? -1 : 1);
         nodesPerElement = c3d10 ? 10 : 4;
         quadratic |= c3d10;
@@ -294,9 +303,11 @@ Result<TetMesh> readInp(const std::string& path, std::vector<std::array<int32_t,
       while (*p == ' ' || *p == '\t' || *p == ',') ++p;
     }
     if (section == Section::Node) {
-      if (f.size() < 4) return fail(ErrorCode::CorruptFile, path, where + ": a node needs an id and x, y, z.");
+      if (f.size() < 4)
+        return fail(ErrorCode::CorruptFile, path, where + ": a node needs an id and x, y, z.");
       if (!nodeIndex.emplace((long long)f[0], int32_t(m.points.size())).second)
-        return fail(ErrorCode::CorruptFile, path, where + ": node " + std::to_string((long long)f[0]) + " is defined twice.");
+        return fail(ErrorCode::CorruptFile, path,
+                    where + ": node " + std::to_string((long long)f[0]) + " is defined twice.");
       m.points.push_back({{f[1], f[2], f[3]}});
     } else {
       if (int(f.size()) != nodesPerElement + 1)
@@ -310,7 +321,9 @@ Result<TetMesh> readInp(const std::string& path, std::vector<std::array<int32_t,
       m.tetLabels.push_back(label);
     }
   }
-  if (!sawKeyword) return fail(ErrorCode::UnreadableFile, path, "it has no keyword lines (not an Abaqus input file).");
+  if (!sawKeyword)
+    return fail(ErrorCode::UnreadableFile, path,
+                "it has no keyword lines (not an Abaqus input file).");
   for (const auto& v : raw) {
     std::array<int32_t, 10> t;
     t.fill(-1);
@@ -318,7 +331,8 @@ Result<TetMesh> readInp(const std::string& path, std::vector<std::array<int32_t,
       if (v[k] < 0) continue;
       const auto it = nodeIndex.find(v[k]);
       if (it == nodeIndex.end())
-        return fail(ErrorCode::CorruptFile, path, "an element uses undefined node " + std::to_string(v[k]) + ".");
+        return fail(ErrorCode::CorruptFile, path,
+                    "an element uses undefined node " + std::to_string(v[k]) + ".");
       t[k] = it->second;
     }
     m.tets.push_back({t[0], t[1], t[2], t[3]});

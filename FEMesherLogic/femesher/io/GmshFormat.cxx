@@ -54,7 +54,8 @@ int mshNodesPerElement(int type) {
 
 Status writeMsh(const TetMesh& m, const std::string& path, const ExportOptions& o) {
   const bool quadratic = o.elementOrder == 2;
-  const QuadraticTetMesh q = quadratic ? quadraticTets(m, o.midEdgeNodes.get()) : QuadraticTetMesh{};
+  const QuadraticTetMesh q =
+      quadratic ? quadraticTets(m, o.midEdgeNodes.get()) : QuadraticTetMesh{};
   const std::vector<Vec3>& points = quadratic ? q.points : m.points;
   const auto byLabel = tetsByLabel(m);
   const auto labels = meshLabels(m);
@@ -301,7 +302,8 @@ Result<TetMesh> readMsh(const std::string& path, std::vector<std::array<int32_t,
       if (v[k] < 0) continue;
       auto it = nodeIndex.find(v[k]);
       if (it == nodeIndex.end())
-        return fail(ErrorCode::CorruptFile, path, "a tetrahedron uses undefined node " + std::to_string(v[k]) + ".");
+        return fail(ErrorCode::CorruptFile, path,
+                    "a tetrahedron uses undefined node " + std::to_string(v[k]) + ".");
       t[k] = it->second;
     }
     m.tets.push_back({t[0], t[1], t[2], t[3]});

@@ -15,9 +15,17 @@ uint64_t tetEdgeKey(int32_t a, int32_t b) {
   return (uint64_t(lo) << 32) | hi;
 }
 
-const std::array<std::array<double, 3>, 11> kTet10CheckPoints{
-    {{{0, 0, 0}}, {{1, 0, 0}}, {{0, 1, 0}}, {{0, 0, 1}}, {{0.5, 0, 0}}, {{0.5, 0.5, 0}},
-     {{0, 0.5, 0}}, {{0, 0, 0.5}}, {{0.5, 0, 0.5}}, {{0, 0.5, 0.5}}, {{0.25, 0.25, 0.25}}}};
+const std::array<std::array<double, 3>, 11> kTet10CheckPoints{{{{0, 0, 0}},
+                                                               {{1, 0, 0}},
+                                                               {{0, 1, 0}},
+                                                               {{0, 0, 1}},
+                                                               {{0.5, 0, 0}},
+                                                               {{0.5, 0.5, 0}},
+                                                               {{0, 0.5, 0}},
+                                                               {{0, 0, 0.5}},
+                                                               {{0.5, 0, 0.5}},
+                                                               {{0, 0.5, 0.5}},
+                                                               {{0.25, 0.25, 0.25}}}};
 
 double tet10JacobianDeterminant(const std::array<Vec3, 10>& x, double r, double s, double t) {
   const double u = 1 - r - s - t;
@@ -98,7 +106,8 @@ QuadraticTetMesh quadraticTets(const TetMesh& m, const MidEdgePositions* curved)
           ++used;
         } else {
           const Vec3 &pa = m.points[size_t(a)], &pb = m.points[size_t(b)];
-          q.points.push_back({{0.5 * (pa[0] + pb[0]), 0.5 * (pa[1] + pb[1]), 0.5 * (pa[2] + pb[2])}});
+          q.points.push_back(
+              {{0.5 * (pa[0] + pb[0]), 0.5 * (pa[1] + pb[1]), 0.5 * (pa[2] + pb[2])}});
         }
       }
       e[4 + k] = it->second;

@@ -40,8 +40,9 @@ class VtkMessages {
 
 Status writeVtu(const TetMesh& m, const std::string& path, const ExportOptions& o) {
   vtkNew<vtkUnstructuredGrid> ug;
-  meshToVtkGrid(m, ug, {VtkFrame::LPS, /*fieldData=*/true, o.provenance, o.elementOrder,
-                              o.midEdgeNodes.get()});
+  meshToVtkGrid(
+      m, ug,
+      {VtkFrame::LPS, /*fieldData=*/true, o.provenance, o.elementOrder, o.midEdgeNodes.get()});
   return writeAtomically(path, [&](const std::string& tmp) {
     vtkNew<vtkXMLUnstructuredGridWriter> w;
     VtkMessages messages(w);
@@ -58,7 +59,8 @@ Status writeVtu(const TetMesh& m, const std::string& path, const ExportOptions& 
 /// reads to place the mesh; read by ParaView and meshio too.
 Status writeLegacyVtk(const TetMesh& m, const std::string& path, const ExportOptions& o) {
   vtkNew<vtkUnstructuredGrid> ug;
-  meshToVtkGrid(m, ug, {VtkFrame::LPS, /*fieldData=*/false, "", o.elementOrder, o.midEdgeNodes.get()});
+  meshToVtkGrid(m, ug,
+                {VtkFrame::LPS, /*fieldData=*/false, "", o.elementOrder, o.midEdgeNodes.get()});
   return writeAtomically(path, [&](const std::string& tmp) {
     vtkNew<vtkUnstructuredGridWriter> w;
     VtkMessages messages(w);
@@ -88,7 +90,8 @@ Result<TetMesh> readVtu(const std::string& path, std::vector<std::array<int32_t,
   return vtkGridToMesh(r->GetOutput(), path, VtkFrame::LPS, midNodes);
 }
 
-Result<TetMesh> readLegacyVtk(const std::string& path, std::vector<std::array<int32_t, 6>>* midNodes) {
+Result<TetMesh> readLegacyVtk(const std::string& path,
+                              std::vector<std::array<int32_t, 6>>* midNodes) {
   vtkNew<vtkUnstructuredGridReader> r;
   VtkMessages messages(r);
   r->SetFileName(path.c_str());
