@@ -882,6 +882,7 @@ bool qFEMesherPanelWidget::exportMesh(const QString& path) {
   options.provenance = "FEMesher panel; input " + inputPath_.toStdString();
   options.contacts = result_->contacts;
   options.nodeSets = result_->boxNodeSets;
+  options.midEdgeNodes = result_->midEdgeNodes;
   const femesher::Status s = femesher::writeMesh(result_->mesh, path.toStdString(), options);
   if (!s) {
     showError(QString::fromStdString(s.message()));

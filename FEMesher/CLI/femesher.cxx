@@ -286,6 +286,15 @@ std::string runSummary(const PipelineResult& r, const std::vector<std::string>& 
                   r.fidelity.meshToLabels.p99, r.fidelity.labelsToMesh.p99, r.fidelity.voxelSize);
     add("Boundary p99", line);
   }
+  std::map<std::string, double> counts(r.counts.begin(), r.counts.end());
+  if (counts.count("quadratic_curved_nodes")) {
+    std::snprintf(line, sizeof line,
+                  "%.0f mid-edge nodes on interfaces curved (%.0f part of the way), %.0f kept "
+                  "straight; worst scaled Jacobian %.3f",
+                  counts["quadratic_curved_nodes"], counts["quadratic_partly_curved_nodes"],
+                  counts["quadratic_straight_kept"], counts["quadratic_worst_scaled_jacobian"]);
+    add("10-node tets", line);
+  }
   for (const auto& c : r.contacts) {
     std::snprintf(line, sizeof line, "%d:%d split, %zu interface triangles, %zu nodes duplicated",
                   c.labelA, c.labelB, c.facesA.size(), c.duplicatedNodes);
@@ -304,6 +313,7 @@ int writeRunOutputs(const PipelineResult& result, const MeshingParameters& param
   eo.provenance = "femesher " FEMESHER_VERSION " from " + source;
   eo.contacts = result.contacts;
   eo.nodeSets = result.boxNodeSets;
+  eo.midEdgeNodes = result.midEdgeNodes;
   std::vector<std::string> exportWarnings;
   for (const auto& out : o.outputs) {
     if (Status s = writeMesh(result.mesh, out, eo); !s) {
@@ -332,6 +342,19 @@ int writeRunOutputs(const PipelineResult& result, const MeshingParameters& param
   return 0;
 }
 
+/// What `optimize` does with a mesh of 10-node tets: it improves their corner tets; the outputs
+/// are 4-node tets unless element_order=2 asks for 10-node ones, made anew from the improved mesh.
+std::string quadraticInputNote(const std::string& meshPath, int elementOrder) {
+  return "note: " + meshPath +
+         " holds 10-node tetrahedra; Optimize works on their corner (4-node) " +
+         "tets and the file's mid-edge nodes are dropped. " +
+         (elementOrder == 2
+              ? "element_order=2: the outputs get new mid-edge nodes, curved onto the label map's "
+                "interfaces."
+              : "The outputs are linear (4-node) tets; add --set element_order=2 for 10-node tets "
+                "(new mid-edge nodes, curved onto the label map's interfaces).");
+}
+
 /// `femesher optimize`: the Optimize stage on an existing labelled tet mesh, against the smooth
 /// interfaces of the label map it was made from; writes the improved mesh and its report.
 int runOptimize(const std::string& meshPath, const std::string& labelsPath, const MeshOptions& o) {
@@ -341,15 +364,17 @@ int runOptimize(const std::string& meshPath, const std::string& labelsPath, cons
   if (Status s = checkOutputs(o.outputs, params.value()); !s) return fail(s);
   cli::CliProgress progress(cli::CliProgress::detect(o.quiet, false));
   progress.start("Optimizing " + meshPath);
-  auto mesh = readMesh(meshPath);
+  auto mesh = readMeshFile(meshPath);
   auto labels = mesh ? readLabelMap(labelsPath) : Result<LabelVolume>(mesh.status());
   if (!mesh || !labels) {
     progress.finish(false);
     return fail(!mesh ? mesh.status() : labels.status());
   }
+  if (mesh->elementOrder == 2)
+    std::fprintf(stderr, "%s\n", quadraticInputNote(meshPath, params->elementOrder).c_str());
   auto result = [&] {
     CancellableRun run(progress);
-    return optimizeMesh(labels.value(), mesh.value(), params.value(), run.ctx);
+    return optimizeMesh(labels.value(), mesh->mesh, params.value(), run.ctx);
   }();
   if (!result) {
     progress.finish(false);
@@ -405,27 +430,59 @@ int runQuality(const std::string& meshPath, const std::string& labelsPath,
   if (!rasterPath.empty() && labelsPath.empty())
     return fail(Status(ErrorCode::InvalidArgument,
                        "--raster needs --labels: the mesh is sampled on that label map's voxel grid"));
-  auto mesh = readMesh(meshPath);
-  if (!mesh) return fail(mesh.status());
+  auto file = readMeshFile(meshPath);
+  if (!file) return fail(file.status());
+  const TetMesh* mesh = &file->mesh;  // the corner tets of a 10-node mesh
+  // 10-node tets: the Jacobian of the quadratic map at the 11 check points of every element.
+  Tet10Jacobian worst;
+  size_t folded = 0;
+  if (file->elementOrder == 2) {
+    const QuadraticTetMesh q = quadraticTets(*mesh, &file->midEdgeNodes);
+    std::array<Vec3, 10> x;
+    for (const auto& t : q.tets) {
+      for (size_t k = 0; k < 10; ++k) x[k] = q.points[size_t(t[k])];
+      const Tet10Jacobian j = tet10Jacobian(x);
+      folded += j.minOverStraight <= 0;
+      worst.minOverStraight = std::min(worst.minOverStraight, j.minOverStraight);
+      worst.minOverMax = std::min(worst.minOverMax, j.minOverMax);
+    }
+  }
   RunContext ctx;
-  const QualityReport q = computeQuality(mesh.value(), ctx);
+  const QualityReport q = computeQuality(*mesh, ctx);
   FidelityReport fr;
   const bool withFidelity = !labelsPath.empty();
   if (withFidelity) {
     auto labels = readLabelMap(labelsPath);
     if (!labels) return fail(labels.status());
-    fr = computeFidelity(labels.value(), mesh.value(), ctx);
+    fr = computeFidelity(labels.value(), *mesh, ctx);
     if (!rasterPath.empty())
-      if (Status st = writeLabelMap(rasterizeMesh(labels.value(), mesh.value()), rasterPath); !st)
+      if (Status st = writeLabelMap(rasterizeMesh(labels.value(), *mesh), rasterPath); !st)
         return fail(st);
   }
   if (asJson) {
-    std::string text = "{\n\"quality\": " + qualityReportToJson(q, true);
+    std::string text = "{\n\"element_order\": " + std::to_string(file->elementOrder) +
+                       ",\n\"quality\": " + qualityReportToJson(q, true);
+    if (file->elementOrder == 2) {
+      char buf[256];
+      std::snprintf(
+          buf, sizeof buf,
+          ",\n\"quadratic\": {\"quality_of\": \"corner tets\", \"min_jacobian_fraction\": "
+          "%.17g, \"worst_scaled_jacobian\": %.17g, \"folded_elements\": %zu}",
+          worst.minOverStraight, worst.minOverMax, folded);
+      text += buf;
+    }
     if (withFidelity) text += ",\n\"fidelity\": " + fidelityReportToJson(fr);
     text += "\n}\n";
     std::fputs(text.c_str(), stdout);
   } else {
     std::printf("%s: %zu vertices, %zu tets\n", meshPath.c_str(), mesh->points.size(), mesh->tets.size());
+    if (file->elementOrder == 2)
+      std::printf(
+          "10-node tets: the figures below are of their corner (4-node) tets. Quadratic "
+          "Jacobian at the 4 corners, 6 mid-edge nodes and centroid: smallest det J %.4f x "
+          "the straight-sided value, worst scaled Jacobian (min/max det J) %.4f, %zu "
+          "element(s) folded (det J <= 0)\n",
+          worst.minOverStraight, worst.minOverMax, folded);
     std::fputs(qualityReportToText(q).c_str(), stdout);
     if (withFidelity) std::fputs(fidelityReportToText(fr).c_str(), stdout);
   }
@@ -651,7 +708,8 @@ int main(int argc, char** argv) {
   std::string qualityMesh, qualityLabels, qualityRaster;
   bool qualityJson = false;
   auto* quality = app.add_subcommand("quality", "Element quality (and fidelity) of a mesh");
-  quality->add_option("mesh", qualityMesh, "Mesh (.vtu .msh .mesh)")->required();
+  quality->add_option("mesh", qualityMesh, "Mesh (.vtu .vtk .msh .inp .mesh; 4- or 10-node tets)")
+      ->required();
   quality->add_option("--labels", qualityLabels, "Label map to compare with (fidelity)");
   quality->add_option("--raster", qualityRaster,
                       "Write the mesh sampled on the label map's voxel centres (label of the tet "
@@ -694,7 +752,8 @@ int main(int argc, char** argv) {
   MeshOptions optOpts;
   auto* optimizeCmd = app.add_subcommand(
       "optimize", "Improve an existing labelled tet mesh against the label map it was made from");
-  optimizeCmd->add_option("mesh", optMesh, "Mesh (.vtu .vtk .msh .mesh)")->required();
+  optimizeCmd->add_option("mesh", optMesh, "Mesh (.vtu .vtk .msh .inp .mesh; 4- or 10-node tets)")
+      ->required();
   optimizeCmd->add_option("--labels", optLabels, "The label map the mesh was made from")->required();
   optimizeCmd->add_option("-o,--output", optOpts.outputs, "Improved mesh; repeat for several formats")
       ->required();

@@ -13,6 +13,7 @@
 
 #include <femesher/MeshCheck.h>
 #include <femesher/Parameters.h>
+#include <femesher/QuadraticCurving.h>
 #include <femesher/RunContext.h>
 #include <femesher/StageTable.h>
 #include <femesher/Types.h>
@@ -70,6 +71,11 @@ struct MeshingState {
   /// faces of the input's box (io/ContactSplit.h).
   std::vector<ContactSurfacePair> contacts;
   std::vector<NamedNodeSet> boxNodeSets;
+  /// prepareExport with element_order 2: the mid-edge nodes curved onto the smooth interfaces
+  /// (physical LPS, by tetEdgeKey of `mesh`'s vertices, contact copies included) and the
+  /// figures of the curving (its `nodes` emptied; QuadraticCurving.h).
+  std::shared_ptr<const MidEdgePositions> midEdgeNodes;
+  QuadraticCurvingResult quadratic;
   std::vector<StageTiming> timings;             ///< wall seconds per stage run, in run order
 };
 
@@ -107,7 +113,10 @@ class MeshingRun {
   /// `femesher sizing` and `femesher medial-axis` write on). Requires LabelPreprocess to have run.
   LabelVolume workingGridGeometry() const { return state_.grid.geometryIn(input_); }
 
-  /// After the last stage, on the final linear mesh: splits the interfaces of the parameter
+  /// After the last stage, on the final linear mesh: with element_order 2 curves the mid-edge
+  /// nodes on interfaces and the outer boundary onto the run's smooth interfaces
+  /// (curveMidEdgeNodes with the indicator functions, in the canonical frame, into
+  /// `state().midEdgeNodes`); splits the interfaces of the parameter
   /// `contact_pairs` (`splitContactInterfaces`: duplicates nodes of `state().mesh`) and finds the
   /// nodes on the faces of the input's box (`boxFaceNodeSets`, copies included), into
   /// `state().contacts` and `state().boxNodeSets`. Quality and Fidelity are measured before (the
@@ -134,6 +143,11 @@ class MeshingRun {
   void fidelity();
   /// Canonical frame, compact labels -> physical LPS, user labels; warns about lost materials.
   void toPhysical();
+  /// prepareExport's curving of the mid-edge nodes (element_order 2), before the contact split.
+  void curveQuadraticNodes();
+  /// After the contact split added node copies (vertices from `firstCopy` on): the curved nodes
+  /// of the edges of the copies, from the edges they copy.
+  void remapMidEdgeNodes(size_t firstCopy);
 
   const LabelVolume& input_;
   const MeshingParameters params_;

@@ -36,6 +36,7 @@ PipelineResult collect(MeshingRun& run, RunContext& ctx,
   result.reportJson = runReportJson(run, result.warnings, result.totalSeconds);
   result.contacts = std::move(s.contacts);
   result.boxNodeSets = std::move(s.boxNodeSets);
+  result.midEdgeNodes = s.midEdgeNodes;
   result.timings = s.timings;
   result.droppedLabels = s.grid.droppedLabels;
   result.excludedLabels = s.grid.excludedLabels;

@@ -30,6 +30,9 @@ struct PipelineResult {
   /// the nodes on the faces of the input's box: what ExportOptions::contacts and ::nodeSets take.
   std::vector<ContactSurfacePair> contacts;
   std::vector<NamedNodeSet> boxNodeSets;
+  /// With element_order 2: the mid-edge nodes curved onto the smooth interfaces (physical LPS, by
+  /// tetEdgeKey of `mesh`'s vertices): what ExportOptions::midEdgeNodes takes. Null otherwise.
+  std::shared_ptr<const MidEdgePositions> midEdgeNodes;
   std::vector<StageTiming> timings; ///< wall seconds per stage, in run order
   std::vector<std::string> warnings;
   /// Counts by name: "surface_samples", "surface_triangles", "vertices", "tets", ...

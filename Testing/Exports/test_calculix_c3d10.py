@@ -8,7 +8,10 @@ the bottom face fixed (the mid-edge nodes there too), 1 kN *CLOAD pushing the to
 nodes down. Both runs must end without *ERROR, with finite displacements, reactions balancing the
 load, and the mean and the largest downward displacement of the top corner nodes (the same nodes
 in both decks) within 20 % of each other (C3D4 is the stiffer element, so C3D10 moves as much
-or somewhat more; measured on 2026-11-24: 2.3 % apart)."""
+or somewhat more; measured on 2026-11-24: 2.3 % apart). The C3D10 deck is curved: its interface
+and boundary mid-edge nodes are on the smooth interfaces (element_order 2 always curves them;
+the report counts them and the deck's nodes are off their edges' midpoints), so CalculiX solves
+curved elements."""
 import math
 import os
 import shutil
@@ -74,6 +77,13 @@ check(len(n1) == nv and len(n2) > nv and all(np.array_equal(n1[i], n2[i]) for i 
       and all(e1[k] == e2[k][:4] for k in e1),
       "the same mesh: C3D10 corner nodes and corners = the C3D4 nodes and elements")
 check(b1 <= b2 and all(n > nv for n in b2 - b1), "BOUNDARY of the C3D10 deck = the C3D4 one plus mid-edge nodes")
+EDGES = [(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)]
+off = {el[4 + k] for el in e2.values() for k, (a, b) in enumerate(EDGES)
+       if np.linalg.norm(n2[el[4 + k]] - 0.5 * (n2[el[a]] + n2[el[b]])) > 1e-6}
+curved = int(report2["counts"].get("quadratic_curved_nodes", 0) + report2["counts"].get("quadratic_partly_curved_nodes", 0))
+check(curved > 100 and 0.99 * curved <= len(off) <= curved,
+      "the C3D10 deck is curved: %d mid-edge nodes more than 1e-6 mm off their edge's midpoint, of the "
+      "report's %d curved nodes" % (len(off), curved))
 mean4, min4 = solve(base1 + ".inp", "static_c3d4", n1, b1, nv)
 mean10, min10 = solve(base2 + ".inp", "static_c3d10", n2, b2, nv)
 print("mean uz of the top corner nodes: C3D4 %.6g mm, C3D10 %.6g mm; min C3D4 %.6g, C3D10 %.6g"

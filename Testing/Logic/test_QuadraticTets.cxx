@@ -178,3 +178,56 @@ TEST(QuadraticTets, WritersUseTenNodeElements) {
   fs::remove_all(dir);
 }
 
+TEST(QuadraticTets, ReadersGiveBackCornersAndMidEdgeNodes) {
+  // Written with some mid-edge nodes moved off their midpoints, read back from every format that
+  // holds 10-node tets: the same corner mesh and the same mid-edge node of every edge.
+  const TetMesh m = jitteredTwoMaterialMesh(2);
+  auto curved = std::make_shared<MidEdgePositions>();
+  const QuadraticTetMesh straight = quadraticTets(m);
+  size_t i = 0;
+  for (const auto& [key, node] : straight.edgeNodes)
+    if (i++ % 3 == 0) {
+      Vec3 p = straight.points[size_t(node)];
+      p[2] += 0.01;
+      (*curved)[key] = p;
+    }
+  const QuadraticTetMesh q = quadraticTets(m, curved.get());
+  const fs::path dir = fs::temp_directory_path() / "femesher_test_quadratic_read";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  ExportOptions o;
+  o.elementOrder = 2;
+  o.midEdgeNodes = curved;
+  for (const char* name : {"m.vtu", "m.vtk", "m.msh", "m.inp"}) {
+    const std::string path = (dir / name).string();
+    ASSERT_TRUE(writeMesh(m, path, o)) << name;
+    const Result<MeshFile> r = readMeshFile(path);
+    ASSERT_TRUE(r) << name << ": " << r.status().message();
+    EXPECT_EQ(r->elementOrder, 2) << name;
+    ASSERT_EQ(r->mesh.points.size(), m.points.size()) << name;
+    // The same tets with the same labels (.inp and .msh group them by material).
+    std::multiset<std::pair<std::array<int32_t, 4>, int32_t>> want, got;
+    for (size_t t = 0; t < m.tets.size(); ++t) want.insert({m.tets[t], m.tetLabels[t]});
+    for (size_t t = 0; t < r->mesh.tets.size(); ++t)
+      got.insert({r->mesh.tets[t], r->mesh.tetLabels[t]});
+    EXPECT_EQ(got, want) << name;
+    double err = 0;
+    for (size_t p = 0; p < m.points.size(); ++p)
+      for (size_t c = 0; c < 3; ++c)
+        err = std::max(err, std::fabs(r->mesh.points[p][c] - m.points[p][c]));
+    ASSERT_EQ(r->midEdgeNodes.size(), q.edgeNodes.size()) << name;
+    for (const auto& [key, node] : q.edgeNodes)
+      for (size_t c = 0; c < 3; ++c)
+        err = std::max(err, std::fabs(r->midEdgeNodes.at(key)[c] - q.points[size_t(node)][c]));
+    EXPECT_LT(err, 1e-12) << name;
+    // readMesh gives the corner mesh.
+    EXPECT_EQ(readMesh(path)->tets.size(), m.tets.size()) << name;
+  }
+  // A linear file reads as order 1 with no mid-edge nodes.
+  ASSERT_TRUE(writeMesh(m, (dir / "l.msh").string(), ExportOptions{}));
+  const Result<MeshFile> l = readMeshFile((dir / "l.msh").string());
+  ASSERT_TRUE(l);
+  EXPECT_EQ(l->elementOrder, 1);
+  EXPECT_TRUE(l->midEdgeNodes.empty());
+  fs::remove_all(dir);
+}

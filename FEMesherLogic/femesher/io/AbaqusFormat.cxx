@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Abaqus / CalculiX input (.inp): model data only, C3D4 (or C3D10) per material, surfaces,
-// materials.
+// materials; and its reader (nodes, elements, materials from the element sets).
 #include <femesher/Version.h>
 #include <femesher/io/MeshFormats.h>
 #include <femesher/io/QuadraticTets.h>
@@ -9,7 +9,11 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <map>
+#include <regex>
 #include <set>
+#include <unordered_map>
 
 namespace femesher::meshio {
 
@@ -85,7 +89,8 @@ Status writeInp(const TetMesh& m, const std::string& path, const ExportOptions& 
   const SolverDeckTables tables(m);
   const auto& [byLabel, tris, patches, elset] = tables;
   const bool quadratic = o.elementOrder == 2;
-  const QuadraticTetMesh q = quadratic ? quadraticTets(m) : QuadraticTetMesh{};
+  const QuadraticTetMesh q =
+      quadratic ? quadraticTets(m, o.midEdgeNodes.get()) : QuadraticTetMesh{};
   const std::vector<Vec3>& points = quadratic ? q.points : m.points;
   return writeText(path, [&](std::FILE* f) {
     // CalculiX reads at most 132 characters per line.
@@ -116,8 +121,10 @@ Status writeInp(const TetMesh& m, const std::string& path, const ExportOptions& 
                    "** NSET BOX_XMIN..BOX_ZMAX: nodes on the faces of the scan's box (X, Y, Z = the\n"
                    "**   image's voxel axes i, j, k; MIN at the first voxel's outer edge).\n");
     if (quadratic)
-      std::fprintf(f, "** C3D10: nodes after %zu are mid-edge nodes at the straight edge midpoints.\n",
-                   q.cornerCount);
+      std::fprintf(f, "** C3D10: nodes after %zu are mid-edge nodes, %s.\n", q.cornerCount,
+                   o.midEdgeNodes && !o.midEdgeNodes->empty()
+                       ? "those of interface and boundary edges on the smooth interfaces"
+                       : "at the straight edge midpoints");
     std::fprintf(f, "*NODE, NSET=ALLNODES\n");
     for (size_t i = 0; i < points.size(); ++i)
       std::fprintf(f, "%zu, %s, %s, %s\n", i + 1, inpReal(points[i][0]).c_str(),
@@ -222,6 +229,116 @@ Status writeInp(const TetMesh& m, const std::string& path, const ExportOptions& 
       std::fprintf(f, "*SOLID SECTION, ELSET=%s, MATERIAL=MAT_%s\n", name.c_str(), name.c_str());
     }
   });
+}
+
+Result<TetMesh> readInp(const std::string& path, std::vector<std::array<int32_t, 6>>* midNodes) {
+  std::ifstream in(path);
+  if (!in) return fail(ErrorCode::UnreadableFile, path, "the file cannot be opened.");
+  enum class Section { Other, Node, Element };
+  Section section = Section::Other;
+  int nodesPerElement = 0;
+  int32_t label = 0;
+  bool quadratic = false, sawKeyword = false;
+  TetMesh m;
+  std::unordered_map<long long, int32_t> nodeIndex;
+  std::vector<std::array<long long, 10>> raw;
+  std::map<int32_t, std::string> names;
+  int32_t namedLabel = 0;
+  const std::regex labelComment(R"(^\*\*   label (-?\d+) -> ELSET=)"),
+      nameComment(R"(^\*\*     name '(.*)'$)");
+  const std::regex elset(R"(ELSET\s*=\s*([MN])(\d+)_)", std::regex::icase);
+  std::string line;
+  size_t lineNo = 0;
+  while (std::getline(in, line)) {
+    ++lineNo;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::smatch g;
+    if (line.rfind("**", 0) == 0) {
+      if (std::regex_search(line, g, labelComment))
+        namedLabel = std::stoi(g[1]);
+      else if (std::regex_search(line, g, nameComment))
+        names[namedLabel] = g[1];
+      continue;
+    }
+    const std::string where = "line " + std::to_string(lineNo);
+    if (!line.empty() && line[0] == '*') {
+      sawKeyword = true;
+      std::string up = line;
+      for (char& c : up) c = char(std::toupper(static_cast<unsigned char>(c)));
+      section = Section::Other;
+      if (up.rfind("*NODE", 0) == 0 && up.rfind("*NODE PRINT", 0) != 0 &&
+          up.rfind("*NODE FILE", 0) != 0) {
+        section = Section::Node;
+      } else if (up.rfind("*ELEMENT", 0) == 0) {
+        const bool c3d4 = up.find("TYPE=C3D4") != std::string::npos;
+        const bool c3d10 = up.find("TYPE=C3D10") != std::string::npos;
+        if (!c3d4 && !c3d10)
+          return fail(ErrorCode::UnreadableFile, path,
+                      where + ": only C3D4 and C3D10 elements are supported (" +
+                          oneLine(line).substr(0, 80) + ").");
+        if (c3d10 && !midNodes)
+          return fail(ErrorCode::UnreadableFile, path,
+                      where + ": 10-node tetrahedra are not supported here.");
+        if (!std::regex_search(up, g, elset))
+          return fail(
+              ErrorCode::UnreadableFile, path,
+              where +
+                  ": the element set is not named M<label>_... as FEMesher writes it, so the "
+                  "elements have no material.");
+        label = int32_t(std::stol(g[2])) * (g[1] == "N" ? -1 : 1);
+        nodesPerElement = c3d10 ? 10 : 4;
+        quadratic |= c3d10;
+        section = Section::Element;
+      }
+      continue;
+    }
+    if (section == Section::Other || line.find_first_not_of(" \t") == std::string::npos) continue;
+    std::vector<double> f;
+    for (const char* p = line.c_str(); *p;) {
+      char* end = nullptr;
+      const double x = std::strtod(p, &end);
+      if (end == p) return fail(ErrorCode::CorruptFile, path, where + ": not a number list.");
+      f.push_back(x);
+      p = end;
+      while (*p == ' ' || *p == '\t' || *p == ',') ++p;
+    }
+    if (section == Section::Node) {
+      if (f.size() < 4)
+        return fail(ErrorCode::CorruptFile, path, where + ": a node needs an id and x, y, z.");
+      if (!nodeIndex.emplace((long long)f[0], int32_t(m.points.size())).second)
+        return fail(ErrorCode::CorruptFile, path,
+                    where + ": node " + std::to_string((long long)f[0]) + " is defined twice.");
+      m.points.push_back({{f[1], f[2], f[3]}});
+    } else {
+      if (int(f.size()) != nodesPerElement + 1)
+        return fail(ErrorCode::CorruptFile, path,
+                    where + ": an element needs an id and " + std::to_string(nodesPerElement) +
+                        " nodes on one line.");
+      std::array<long long, 10> v;
+      v.fill(-1);
+      for (int k = 0; k < nodesPerElement; ++k) v[size_t(k)] = (long long)f[size_t(k) + 1];
+      raw.push_back(v);
+      m.tetLabels.push_back(label);
+    }
+  }
+  if (!sawKeyword)
+    return fail(ErrorCode::UnreadableFile, path,
+                "it has no keyword lines (not an Abaqus input file).");
+  for (const auto& v : raw) {
+    std::array<int32_t, 10> t;
+    t.fill(-1);
+    for (size_t k = 0; k < 10; ++k) {
+      if (v[k] < 0) continue;
+      const auto it = nodeIndex.find(v[k]);
+      if (it == nodeIndex.end())
+        return fail(ErrorCode::CorruptFile, path,
+                    "an element uses undefined node " + std::to_string(v[k]) + ".");
+      t[k] = it->second;
+    }
+    m.tets.push_back({t[0], t[1], t[2], t[3]});
+    if (quadratic) midNodes->push_back({t[4], t[5], t[6], t[7], t[8], t[9]});
+  }
+  return finishRead(std::move(m), path, names);
 }
 
 }  // namespace femesher::meshio

@@ -52,7 +52,8 @@ Status writeFeb(const TetMesh& m, const std::string& path, const ExportOptions& 
   const auto& patches = tables.patches;
   const auto names = febioNames(m);
   const bool quadratic = o.elementOrder == 2;
-  const QuadraticTetMesh q = quadratic ? quadraticTets(m) : QuadraticTetMesh{};
+  const QuadraticTetMesh q =
+      quadratic ? quadraticTets(m, o.midEdgeNodes.get()) : QuadraticTetMesh{};
   const std::vector<Vec3>& points = quadratic ? q.points : m.points;
   // The nodes of tet t and of interface triangle i (mid-edge nodes too with order 2).
   auto insertTetNodes = [&](std::set<int32_t>& nodes, size_t t) {

@@ -54,7 +54,8 @@ int mshNodesPerElement(int type) {
 
 Status writeMsh(const TetMesh& m, const std::string& path, const ExportOptions& o) {
   const bool quadratic = o.elementOrder == 2;
-  const QuadraticTetMesh q = quadratic ? quadraticTets(m) : QuadraticTetMesh{};
+  const QuadraticTetMesh q =
+      quadratic ? quadraticTets(m, o.midEdgeNodes.get()) : QuadraticTetMesh{};
   const std::vector<Vec3>& points = quadratic ? q.points : m.points;
   const auto byLabel = tetsByLabel(m);
   const auto labels = meshLabels(m);
@@ -153,7 +154,7 @@ Status writeMsh(const TetMesh& m, const std::string& path, const ExportOptions& 
   });
 }
 
-Result<TetMesh> readMsh(const std::string& path) {
+Result<TetMesh> readMsh(const std::string& path, std::vector<std::array<int32_t, 6>>* midNodes) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return fail(ErrorCode::UnreadableFile, path, "the file cannot be opened.");
   Tokens tok(in, path);
@@ -162,7 +163,8 @@ Result<TetMesh> readMsh(const std::string& path) {
   std::map<int, std::string> physNames;     // dim-3 physical tag -> name
   std::map<int, int32_t> physToLabel;       // from $FEMesherLabels
   std::unordered_map<long long, int32_t> nodeIndex;
-  std::vector<std::pair<std::array<long long, 4>, int>> rawTets;  // node tags, volume entity
+  std::vector<std::pair<std::array<long long, 10>, int>> rawTets;  // node tags, volume entity
+  bool quadratic = false;  // 10-node tets (type 11) in the file
   bool sawFormat = false, sawNodes = false;
   std::string w;
   while (tok.next(w)) {
@@ -257,18 +259,22 @@ Result<TetMesh> readMsh(const std::string& path) {
         const int nn = mshNodesPerElement(type);
         if (nn < 0)
           return fail(ErrorCode::UnreadableFile, path, "element type " + std::to_string(type) + " is not supported.");
-        if (dim == 3 && type != 4)
+        if (dim == 3 && type != 4 && !(type == 11 && midNodes))
           return fail(ErrorCode::UnreadableFile, path,
-                      "it has volume elements that are not linear tetrahedra (Gmsh type " +
+                      "it has volume elements that are not linear" +
+                          std::string(midNodes ? " or 10-node" : "") + " tetrahedra (Gmsh type " +
                           std::to_string(type) + ").");
+        quadratic |= type == 11;
         for (long long i = 0; i < n; ++i) {
           tok.get<long long>("$Elements");
-          std::array<long long, 4> v{};
+          std::array<long long, 10> v{};
+          v.fill(-1);
           for (int k = 0; k < nn; ++k) {
             const long long x = tok.get<long long>("$Elements");
-            if (k < 4) v[size_t(k)] = x;
+            // Gmsh's tet10 puts edge (2,3)'s node before edge (1,3)'s: back to kTet10Edges order.
+            if (type == 4 || type == 11) v[size_t(type == 11 ? kGmshTet10Order[size_t(k)] : k)] = x;
           }
-          if (type == 4) rawTets.push_back({v, tag});
+          if (type == 4 || type == 11) rawTets.push_back({v, tag});
         }
       }
     } else {
@@ -290,14 +296,18 @@ Result<TetMesh> readMsh(const std::string& path) {
   if (!sawFormat) return fail(ErrorCode::UnreadableFile, path, "it is empty or not a Gmsh mesh.");
   if (!sawNodes) return fail(ErrorCode::CorruptFile, path, "it has no $Nodes section.");
   for (const auto& [v, entity] : rawTets) {
-    std::array<int32_t, 4> t;
-    for (int k = 0; k < 4; ++k) {
-      auto it = nodeIndex.find(v[size_t(k)]);
+    std::array<int32_t, 10> t;
+    t.fill(-1);
+    for (size_t k = 0; k < 10; ++k) {
+      if (v[k] < 0) continue;
+      auto it = nodeIndex.find(v[k]);
       if (it == nodeIndex.end())
-        return fail(ErrorCode::CorruptFile, path, "a tetrahedron uses undefined node " + std::to_string(v[size_t(k)]) + ".");
-      t[size_t(k)] = it->second;
+        return fail(ErrorCode::CorruptFile, path,
+                    "a tetrahedron uses undefined node " + std::to_string(v[k]) + ".");
+      t[k] = it->second;
     }
-    m.tets.push_back(t);
+    m.tets.push_back({t[0], t[1], t[2], t[3]});
+    if (quadratic) midNodes->push_back({t[4], t[5], t[6], t[7], t[8], t[9]});
     auto p = volumePhysical.find(entity);
     const int phys = p != volumePhysical.end() ? p->second : entity;
     auto l = physToLabel.find(phys);

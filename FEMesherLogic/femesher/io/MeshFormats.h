@@ -36,10 +36,18 @@ Status writeStl(const TetMesh& m, const std::string& path, const ExportOptions& 
 // --- Readers
 // ---------------------------------------------------------------------------------------
 
-Result<TetMesh> readVtu(const std::string& path);
-Result<TetMesh> readLegacyVtk(const std::string& path);
+/// With `midNodes`, the .vtu, .vtk, .msh and .inp readers also take 10-node tets: the corners are
+/// the tet, the six mid-edge nodes (kTet10Edges order, whatever the file's) one entry of
+/// `midNodes` per tet (-1s for a 4-node tet). Without it a 10-node tet is an error.
+Result<TetMesh> readVtu(const std::string& path, std::vector<std::array<int32_t, 6>>* midNodes = nullptr);
+Result<TetMesh> readLegacyVtk(const std::string& path,
+                              std::vector<std::array<int32_t, 6>>* midNodes = nullptr);
 Result<TetMesh> readMedit(const std::string& path);
-Result<TetMesh> readMsh(const std::string& path);
+Result<TetMesh> readMsh(const std::string& path, std::vector<std::array<int32_t, 6>>* midNodes = nullptr);
+/// Abaqus/CalculiX input as FEMesher writes it: *NODE, *ELEMENT TYPE=C3D4 or C3D10 with
+/// ELSET=M<label>_<name> (N<label> for a negative label), names from the header comments; other
+/// keywords are skipped.
+Result<TetMesh> readInp(const std::string& path, std::vector<std::array<int32_t, 6>>* midNodes = nullptr);
 
 // --- Shared helpers (io/MeshFormats.cxx)
 // -----------------------------------------------------------

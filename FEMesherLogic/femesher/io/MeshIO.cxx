@@ -133,26 +133,113 @@ Status writeMesh(const TetMesh& mesh, const std::string& path, const ExportOptio
   }
 }
 
+namespace {
+
+/// The corner mesh of a file of 10-node tets: corners renumbered, mid-edge nodes by edge.
+Result<MeshFile> cornerMesh(TetMesh m, const std::vector<std::array<int32_t, 6>>& mids,
+                            const std::string& path) {
+  using meshio::fail;
+  MeshFile out;
+  const bool anyQuadratic =
+      std::any_of(mids.begin(), mids.end(), [](const auto& e) { return e[0] >= 0; });
+  if (!anyQuadratic) {
+    out.mesh = std::move(m);
+    return out;
+  }
+  if (mids.size() != m.tets.size() || std::any_of(mids.begin(), mids.end(), [](const auto& e) {
+        return std::any_of(e.begin(), e.end(), [](int32_t v) { return v < 0; });
+      }))
+    return Result<MeshFile>(
+        fail(ErrorCode::UnreadableFile, path,
+             "it mixes 4-node and 10-node tetrahedra; FEMesher reads meshes of one "
+             "element order.")
+            .status());
+  std::vector<int32_t> corner(m.points.size(), -1);
+  std::vector<char> isMid(m.points.size(), 0);
+  for (const auto& e : mids)
+    for (int32_t v : e) isMid[size_t(v)] = 1;
+  TetMesh& c = out.mesh;
+  for (const auto& t : m.tets)
+    for (int32_t v : t) {
+      if (isMid[size_t(v)])
+        return Result<MeshFile>(fail(ErrorCode::CorruptFile, path,
+                                     "node " + std::to_string(v + 1) +
+                                         " is both a corner and a "
+                                         "mid-edge node of 10-node tetrahedra.")
+                                    .status());
+      corner[size_t(v)] = 0;
+    }
+  for (size_t v = 0; v < corner.size(); ++v)  // corners keep their order in the file
+    if (corner[v] == 0) {
+      corner[v] = int32_t(c.points.size());
+      c.points.push_back(m.points[v]);
+    }
+  for (auto& t : m.tets)
+    for (int32_t& v : t) v = corner[size_t(v)];
+  c.tets = std::move(m.tets);
+  c.tetLabels = std::move(m.tetLabels);
+  c.materials = std::move(m.materials);
+  out.elementOrder = 2;
+  for (size_t t = 0; t < c.tets.size(); ++t)
+    for (size_t k = 0; k < 6; ++k) {
+      const int32_t a = c.tets[t][size_t(kTet10Edges[k][0])],
+                    b = c.tets[t][size_t(kTet10Edges[k][1])];
+      const Vec3& p = m.points[size_t(mids[t][k])];
+      const auto [it, added] = out.midEdgeNodes.emplace(tetEdgeKey(a, b), p);
+      if (!added && it->second != p)
+        return Result<MeshFile>(
+            fail(ErrorCode::CorruptFile, path,
+                 "two tetrahedra give the edge of nodes " + std::to_string(a + 1) + " and " +
+                     std::to_string(b + 1) +
+                     " different mid-edge nodes (not a conformal 10-node mesh).")
+                .status());
+    }
+  return out;
+}
+
+}  // namespace
+
 Result<TetMesh> readMesh(const std::string& path) {
+  auto file = readMeshFile(path);
+  if (!file) return file.status();
+  return std::move(file.value().mesh);
+}
+
+Result<MeshFile> readMeshFile(const std::string& path) {
   using namespace meshio;
+  using R = Result<MeshFile>;
   std::error_code ec;
   if (!std::filesystem::exists(path, ec))
-    return fail(ErrorCode::FileNotFound, path, "the file does not exist.");
+    return R(fail(ErrorCode::FileNotFound, path, "the file does not exist.").status());
   if (std::filesystem::is_directory(path, ec))
-    return fail(ErrorCode::UnreadableFile, path, "it is a folder, not a mesh file.");
+    return R(fail(ErrorCode::UnreadableFile, path, "it is a folder, not a mesh file.").status());
   const std::string ext = fileExtension(path);
+  std::vector<std::array<int32_t, 6>> mids;
   try {
-    if (ext == ".vtu") return readVtu(path);
-    if (ext == ".vtk") return readLegacyVtk(path);
-    if (ext == ".mesh") return readMedit(path);
-    if (ext == ".msh") return readMsh(path);
+    Result<TetMesh> m = Status(ErrorCode::Internal, "");
+    if (ext == ".vtu")
+      m = readVtu(path, &mids);
+    else if (ext == ".vtk")
+      m = readLegacyVtk(path, &mids);
+    else if (ext == ".mesh")
+      m = readMedit(path);
+    else if (ext == ".msh")
+      m = readMsh(path, &mids);
+    else if (ext == ".inp")
+      m = readInp(path, &mids);
+    else
+      return R(fail(ErrorCode::UnreadableFile, path,
+                    "unsupported extension '" + ext +
+                        "'; FEMesher reads .vtu, .vtk, .msh (4.1 ASCII), "
+                        ".inp (as FEMesher writes it) and .mesh (Medit).")
+                   .status());
+    if (!m) return R(m.status());
+    return cornerMesh(std::move(m).value(), mids, path);
   } catch (const Error& e) {
-    return Result<TetMesh>(e.status());
+    return R(e.status());
   } catch (const std::exception& e) {
-    return fail(ErrorCode::CorruptFile, path, e.what());
+    return R(fail(ErrorCode::CorruptFile, path, e.what()).status());
   }
-  return fail(ErrorCode::UnreadableFile, path,
-              "unsupported extension '" + ext + "'; FEMesher reads .vtu, .vtk, .msh (4.1 ASCII) and .mesh (Medit).");
 }
 
 }  // namespace femesher

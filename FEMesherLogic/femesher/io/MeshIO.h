@@ -24,7 +24,8 @@
 /// `ExportOptions::nodeSets` (the box-face node sets); see ExportOptions.
 /// All writers are atomic (temporary file + rename). Coordinates are written in LPS mm.
 /// With `ExportOptions::elementOrder` = 2 the .inp, .msh, .vtu, .vtk and .feb writers write
-/// 10-node tets (QuadraticTets.h: one straight-edge midpoint node per unique edge, node order of
+/// 10-node tets (QuadraticTets.h: one node per unique edge, at its midpoint or where
+/// `ExportOptions::midEdgeNodes` puts it on the smooth interfaces, node order of
 /// each format: C3D10, Gmsh type 11, VTK_QUADRATIC_TETRA, FEBio tet10), the .msh its interface
 /// triangles as 6-node triangles (type 9), the .feb its surfaces as tri6 and its NodeSets with
 /// the mid-edge nodes; the .inp NSET BOUNDARY holds the boundary's mid-edge nodes too (its
@@ -35,6 +36,7 @@
 #include <femesher/Status.h>
 #include <femesher/Types.h>
 #include <femesher/io/ContactSplit.h>
+#include <femesher/io/QuadraticTets.h>
 
 #include <map>
 #include <string>
@@ -53,6 +55,10 @@ struct ExportOptions {
   std::string provenance;
   /// 1: 4-node tets; 2: 10-node tets (parameter `element_order`; see the file comment).
   int elementOrder = 1;
+  /// With element order 2: the curved mid-edge nodes of the mesh being written
+  /// (PipelineResult::midEdgeNodes, QuadraticCurving.h); every writer puts those nodes there and
+  /// the others at their edge's midpoint. Null: every mid-edge node straight.
+  std::shared_ptr<const MidEdgePositions> midEdgeNodes;
   /// Interfaces split for contact (`splitContactInterfaces`, PipelineResult::contacts) of the
   /// mesh being written. .inp: element-face *SURFACEs CONTACT_<a>_<b>_S (faces of a's elements,
   /// the dependent side) and CONTACT_<a>_<b>_M (b's, the independent side), a *SURFACE
@@ -90,8 +96,24 @@ Status checkExportable(const std::string& path, const ExportOptions& options);
 /// WriteFailed for I/O errors. Never leaves a partial file.
 Status writeMesh(const TetMesh& mesh, const std::string& path, const ExportOptions& options = {});
 
-/// Read a tet mesh written by FEMesher (.vtu, .vtk; .msh 4.1 ASCII and .mesh too). Used by
-/// `femesher quality`. Errors: FileNotFound, UnreadableFile (wrong format/version), CorruptFile.
+/// A mesh file as read: its corner tets and, for 10-node tets, where their mid-edge nodes are.
+struct MeshFile {
+  /// The tets by their corners; `points` holds the corner nodes only (mid-edge nodes dropped,
+  /// corners renumbered in file order).
+  TetMesh mesh;
+  int elementOrder = 1;  ///< 2 when the file holds 10-node tets
+  /// Order 2: the mid-edge node of every edge of `mesh` (by tetEdgeKey), as in the file.
+  MidEdgePositions midEdgeNodes;
+};
+
+/// Read a tet mesh written by FEMesher (.vtu, .vtk, .inp; .msh 4.1 ASCII and .mesh too), of
+/// 4-node or 10-node tets (.vtu/.vtk VTK_QUADRATIC_TETRA, .msh type 11, .inp C3D10; Medit has
+/// none). Used by `femesher quality` and `optimize`. Errors: FileNotFound, UnreadableFile (wrong
+/// format/version, other element types, 4-node and 10-node tets mixed), CorruptFile (among
+/// others: an edge with two different mid-edge nodes, a node both a corner and a mid-edge node).
+Result<MeshFile> readMeshFile(const std::string& path);
+
+/// readMeshFile's corner mesh (a 10-node file's mid-edge nodes dropped).
 Result<TetMesh> readMesh(const std::string& path);
 
 }  // namespace femesher

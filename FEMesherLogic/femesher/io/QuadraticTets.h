@@ -4,8 +4,9 @@
 /// Second-order (10-node) tetrahedra for the solver exports (`element_order` = 2): one mid-edge
 /// node per unique edge of the linear mesh, shared by every tet around that edge (so the
 /// quadratic mesh is conformal across materials exactly as the linear one is). Mid-edge nodes sit
-/// at the straight edge midpoint, so every 10-node tet has the same (positive) Jacobian as its
-/// linear tet everywhere.
+/// at the straight edge midpoint, so that every 10-node tet has the same (positive) Jacobian as
+/// its linear tet everywhere, unless a table of curved positions (`MidEdgePositions`, made by a
+/// run: QuadraticCurving.h) moves some of them onto the smooth interfaces.
 ///
 /// Node order of `QuadraticTetMesh::tets`: the four corners, then the mid-edge nodes of the edges
 /// (0,1), (1,2), (2,0), (0,3), (1,3), (2,3) (`kTet10Edges`). This is the order of Abaqus/CalculiX
@@ -16,6 +17,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <unordered_map>
 #include <vector>
 
@@ -28,6 +30,14 @@ inline constexpr std::array<std::array<int, 2>, 6> kTet10Edges{
 /// Gmsh order of a tet10: node k of Gmsh's element is node kGmshTet10Order[k] of ours (Gmsh
 /// puts the midpoint of edge (2,3) before that of (1,3)).
 inline constexpr std::array<int, 10> kGmshTet10Order{{0, 1, 2, 3, 4, 5, 6, 7, 9, 8}};
+
+/// The key of the edge (a, b) of a linear mesh (either order) in `MidEdgePositions` and
+/// `QuadraticTetMesh::edgeNodes`.
+uint64_t tetEdgeKey(int32_t a, int32_t b);
+
+/// Positions of mid-edge nodes that are not at their edge's midpoint, by `tetEdgeKey` of the
+/// linear mesh's vertex indices (same frame as the mesh's points). Edges not in it are straight.
+using MidEdgePositions = std::unordered_map<uint64_t, Vec3>;
 
 struct QuadraticTetMesh {
   /// The linear mesh's vertices (same indices), then one node per unique edge.
@@ -43,8 +53,33 @@ struct QuadraticTetMesh {
   std::unordered_map<uint64_t, int32_t> edgeNodes;  ///< edge key (min, max) -> mid-edge node
 };
 
-/// The 10-node version of `m` (straight edges, midpoints). Mid-edge nodes are numbered in the
-/// order their edge is first met, tet by tet, edge by edge in `kTet10Edges` order.
-QuadraticTetMesh quadraticTets(const TetMesh& m);
+/// The 10-node version of `m`: mid-edge nodes at the edge midpoints, or where `curved` puts them.
+/// Mid-edge nodes are numbered in the order their edge is first met, tet by tet, edge by edge in
+/// `kTet10Edges` order. Throws Error(Internal) when `curved` holds an edge `m` does not have (a
+/// table made for another mesh).
+QuadraticTetMesh quadraticTets(const TetMesh& m, const MidEdgePositions* curved = nullptr);
+
+/// Determinant of the Jacobian of the 10-node isoparametric map (nodes in `kTet10Edges` order)
+/// at natural coordinates (r, s, t) (node 0 at the origin, nodes 1, 2, 3 at the unit points).
+/// A straight-sided tet has 6 × its volume everywhere.
+double tet10JacobianDeterminant(const std::array<Vec3, 10>& x, double r, double s, double t);
+
+/// The 11 points where FEMesher checks a 10-node tet (its 4 corners, 6 mid-edge nodes and the
+/// centroid), in natural coordinates (r, s, t).
+extern const std::array<std::array<double, 3>, 11> kTet10CheckPoints;
+
+/// The Jacobian figures of a 10-node tet at `kTet10CheckPoints`: the smallest determinant over
+/// the straight-sided tet's (6 × volume of its corners: 1 for a straight tet, <= 0 when the
+/// element folds), and the smallest over the largest determinant (the "scaled Jacobian" of a
+/// curved element: 1 for a straight tet). Both are -inf when the corner tet is flat or inverted.
+struct Tet10Jacobian {
+  double minOverStraight = 1;
+  double minOverMax = 1;
+};
+Tet10Jacobian tet10Jacobian(const std::array<Vec3, 10>& x);
+
+/// The worst `Tet10Jacobian` of a 10-node mesh's elements (each figure its own minimum).
+Tet10Jacobian worstTet10Jacobian(const std::vector<Vec3>& points,
+                                 const std::vector<std::array<int32_t, 10>>& tets);
 
 }  // namespace femesher

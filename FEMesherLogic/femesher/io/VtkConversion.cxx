@@ -131,7 +131,7 @@ void setGeometry(const vtkMatrix4x4& ijkToWorld, const int extent[6], VtkFrame f
 void meshToVtkGrid(const TetMesh& m, vtkUnstructuredGrid* ug, const VtkGridOptions& o) {
   ug->Initialize();
   const bool quadratic = o.elementOrder == 2;
-  const QuadraticTetMesh q = quadratic ? quadraticTets(m) : QuadraticTetMesh{};
+  const QuadraticTetMesh q = quadratic ? quadraticTets(m, o.midEdgeNodes) : QuadraticTetMesh{};
   const std::vector<Vec3>& points = quadratic ? q.points : m.points;
   vtkNew<vtkPoints> pts;
   pts->SetDataTypeToDouble();
@@ -160,7 +160,8 @@ void meshToVtkGrid(const TetMesh& m, vtkUnstructuredGrid* ug, const VtkGridOptio
   if (o.fieldData) addFieldData(m, o, ug->GetFieldData());
 }
 
-Result<TetMesh> vtkGridToMesh(vtkUnstructuredGrid* ug, const std::string& path, VtkFrame frame) {
+Result<TetMesh> vtkGridToMesh(vtkUnstructuredGrid* ug, const std::string& path, VtkFrame frame,
+                              std::vector<std::array<int32_t, 6>>* midNodes) {
   if (!ug || ug->GetNumberOfCells() == 0)
     return fail(ErrorCode::CorruptFile, path, "it holds no cells.");
   vtkDataArray* labels = ug->GetCellData()->GetArray("labels");
@@ -177,11 +178,19 @@ Result<TetMesh> vtkGridToMesh(vtkUnstructuredGrid* ug, const std::string& path, 
   m.tets.reserve(size_t(ug->GetNumberOfCells()));
   vtkNew<vtkIdList> ids;
   for (vtkIdType c = 0; c < ug->GetNumberOfCells(); ++c) {
-    if (ug->GetCellType(c) != VTK_TETRA)
+    const int type = ug->GetCellType(c);
+    if (type != VTK_TETRA && !(type == VTK_QUADRATIC_TETRA && midNodes))
       return fail(ErrorCode::UnreadableFile, path,
-                  "cell " + std::to_string(c) + " is not a linear tetrahedron (VTK type " +
-                      std::to_string(ug->GetCellType(c)) + ").");
+                  "cell " + std::to_string(c) + " is not a linear" +
+                      (midNodes ? " or 10-node" : "") + " tetrahedron (VTK type " +
+                      std::to_string(type) + ").");
     ug->GetCellPoints(c, ids);
+    if (midNodes) {
+      std::array<int32_t, 6> mid{{-1, -1, -1, -1, -1, -1}};
+      if (type == VTK_QUADRATIC_TETRA)  // vtkQuadraticTetra's order is kTet10Edges'
+        for (size_t k = 0; k < 6; ++k) mid[k] = int32_t(ids->GetId(vtkIdType(4 + k)));
+      midNodes->push_back(mid);
+    }
     m.tets.push_back({int32_t(ids->GetId(0)), int32_t(ids->GetId(1)), int32_t(ids->GetId(2)),
                       int32_t(ids->GetId(3))});
     const double v = labels->GetTuple1(c);

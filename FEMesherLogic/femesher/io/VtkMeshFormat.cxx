@@ -40,7 +40,9 @@ class VtkMessages {
 
 Status writeVtu(const TetMesh& m, const std::string& path, const ExportOptions& o) {
   vtkNew<vtkUnstructuredGrid> ug;
-  meshToVtkGrid(m, ug, {VtkFrame::LPS, /*fieldData=*/true, o.provenance, o.elementOrder});
+  meshToVtkGrid(
+      m, ug,
+      {VtkFrame::LPS, /*fieldData=*/true, o.provenance, o.elementOrder, o.midEdgeNodes.get()});
   return writeAtomically(path, [&](const std::string& tmp) {
     vtkNew<vtkXMLUnstructuredGridWriter> w;
     VtkMessages messages(w);
@@ -57,7 +59,8 @@ Status writeVtu(const TetMesh& m, const std::string& path, const ExportOptions& 
 /// reads to place the mesh; read by ParaView and meshio too.
 Status writeLegacyVtk(const TetMesh& m, const std::string& path, const ExportOptions& o) {
   vtkNew<vtkUnstructuredGrid> ug;
-  meshToVtkGrid(m, ug, {VtkFrame::LPS, /*fieldData=*/false, "", o.elementOrder});
+  meshToVtkGrid(m, ug,
+                {VtkFrame::LPS, /*fieldData=*/false, "", o.elementOrder, o.midEdgeNodes.get()});
   return writeAtomically(path, [&](const std::string& tmp) {
     vtkNew<vtkUnstructuredGridWriter> w;
     VtkMessages messages(w);
@@ -71,7 +74,7 @@ Status writeLegacyVtk(const TetMesh& m, const std::string& path, const ExportOpt
   });
 }
 
-Result<TetMesh> readVtu(const std::string& path) {
+Result<TetMesh> readVtu(const std::string& path, std::vector<std::array<int32_t, 6>>* midNodes) {
   vtkNew<vtkXMLUnstructuredGridReader> r;
   VtkMessages messages(r);
   r->SetReaderErrorObserver(messages.command());
@@ -84,10 +87,11 @@ Result<TetMesh> readVtu(const std::string& path) {
     return fail(ErrorCode::CorruptFile, path,
                 "VTK could not decode it (truncated or damaged?)" +
                     (messages.text.empty() ? std::string(".") : ": " + oneLine(messages.text.substr(0, 300))));
-  return vtkGridToMesh(r->GetOutput(), path);
+  return vtkGridToMesh(r->GetOutput(), path, VtkFrame::LPS, midNodes);
 }
 
-Result<TetMesh> readLegacyVtk(const std::string& path) {
+Result<TetMesh> readLegacyVtk(const std::string& path,
+                              std::vector<std::array<int32_t, 6>>* midNodes) {
   vtkNew<vtkUnstructuredGridReader> r;
   VtkMessages messages(r);
   r->SetFileName(path.c_str());
@@ -97,7 +101,7 @@ Result<TetMesh> readLegacyVtk(const std::string& path) {
   if (!messages.text.empty())
     return fail(ErrorCode::CorruptFile, path,
                 "VTK could not decode it: " + oneLine(messages.text.substr(0, 300)));
-  return vtkGridToMesh(r->GetOutput(), path);
+  return vtkGridToMesh(r->GetOutput(), path, VtkFrame::LPS, midNodes);
 }
 
 }  // namespace femesher::meshio
