@@ -43,17 +43,6 @@ struct SurfaceEdge {
   }
 };
 
-/// Box planes a point lies on: bit 2a for the low plane of axis a, bit 2a+1 for the high one.
-int boxPlanes(const OptimizeInterfaces& in, const Vec3& p) {
-  int mask = 0;
-  if (in.hasBox)
-    for (size_t a = 0; a < 3; ++a) {
-      if (std::fabs(p[a] - in.boxLo[a]) <= in.boxTolerance) mask |= 1 << (2 * a);
-      if (std::fabs(p[a] - in.boxHi[a]) <= in.boxTolerance) mask |= 2 << (2 * a);
-    }
-  return mask;
-}
-
 /// Puts `p` on every box plane of `planes` and inside the box.
 void keepInBox(const OptimizeInterfaces& in, int planes, Vec3& p) {
   if (!in.hasBox) return;
@@ -144,9 +133,9 @@ QuadraticCurvingResult curveMidEdgeNodes(const TetMesh& mesh, const OptimizeInte
   std::unordered_map<uint64_t, SurfaceEdge> surface;
   for (const InterfaceTriangle& f : extractInterfaces(mesh)) {
     const bool outer = f.labelB == kExteriorLabel;
-    const bool onBox = outer && (boxPlanes(in, mesh.points[size_t(f.v[0])]) &
-                                 boxPlanes(in, mesh.points[size_t(f.v[1])]) &
-                                 boxPlanes(in, mesh.points[size_t(f.v[2])])) != 0;
+    const bool onBox = outer && (in.boxPlanes(mesh.points[size_t(f.v[0])]) &
+                                 in.boxPlanes(mesh.points[size_t(f.v[1])]) &
+                                 in.boxPlanes(mesh.points[size_t(f.v[2])])) != 0;
     const int a = outer ? 0 : std::min(f.labelA, f.labelB);
     const int b = outer ? f.labelA : std::max(f.labelA, f.labelB);
     for (int k = 0; k < 3; ++k) {
@@ -170,7 +159,7 @@ QuadraticCurvingResult curveMidEdgeNodes(const TetMesh& mesh, const OptimizeInte
     const SurfaceEdge& e = surface.at(key);
     const int32_t u = int32_t(key >> 32), v = int32_t(key & 0xffffffffu);
     const Vec3 &pu = mesh.points[size_t(u)], &pv = mesh.points[size_t(v)];
-    const int planes = boxPlanes(in, pu) & boxPlanes(in, pv);
+    const int planes = in.boxPlanes(pu) & in.boxPlanes(pv);
     // Flat box faces and box edges are exact already: their nodes stay at the midpoint.
     if (e.box && (e.count == 0 || popcount(planes) >= 2)) continue;
     ++r.surfaceNodes;

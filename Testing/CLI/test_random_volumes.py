@@ -16,7 +16,7 @@ import random_volumes  # noqa: E402
 CLI = os.environ["FEMESHER_CLI"]
 TMP = tempfile.mkdtemp(prefix="random_volumes_", dir=os.environ.get("FEMESHER_TMP"))
 COUNT, SEED, MAX_SIZE = 30, 12, 22
-FLOOR = 27
+FLOOR = 30
 # Exit codes of femesher (README, "Exit codes"): the ones a meshing run may end with.
 ERRORS = {10: "meshing-failed", 13: "internal"}
 

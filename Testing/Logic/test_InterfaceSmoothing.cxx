@@ -129,14 +129,19 @@ size_t expectInterfaceInvariants(const Optimized& o, const std::string& name) {
       boxVertex |= l[a] <= -s.grid.offset[a] - 0.49 || l[a] >= s.grid.inputDims[a] - s.grid.offset[a] - 0.51;
     if (boxVertex) continue;
     ++moved;
-    if (m.size() == 2 && !(std::fabs(field.eval(m[0], l) - field.eval(m[1], l)) < tol)) {
+    bool on = true;
+    for (size_t k = 1; k < m.size(); ++k)
+      on = on && std::fabs(field.eval(m[0], l) - field.eval(m[k], l)) < tol;
+    if (!on) {
       // The optimizer's last resort (Optimize.h, off-interface move): within the facet distance
-      // of the interface, and only as often as it says it did so.
+      // of the interface or triple line, and only as often as it says it did so.
       ++offInterface;
       Vec3 q = o.after.points[i];
-      EXPECT_TRUE(interfaces.projectOntoInterface(m[0], m[1], q)) << "vertex " << i;
+      EXPECT_TRUE(m.size() == 2 ? interfaces.projectOntoInterface(m[0], m[1], q)
+                                : interfaces.projectOntoJunction({{m[0], m[1], m[2]}}, q))
+          << "vertex " << i;
       EXPECT_LE(norm(sub(q, o.after.points[i])), interfaces.facetDistance)
-          << "vertex " << i << " too far off the interface of " << m[0] << " and " << m[1];
+          << "vertex " << i << " too far off the interface or line of " << m[0] << ", " << m[1];
       continue;
     }
     for (size_t k = 1; k < m.size(); ++k)

@@ -43,7 +43,9 @@ struct Case {
   /// example_seg 5.57, frogtissue 9.76, example_seg_dicom 6.78, digimouse 6.93, colin27 6.97.
   /// Runs are the same for every thread count, so the floors hold on any machine.
   /// 2026-11-25: TetGen's dihedral bound 3 (was 12) moved frogtissue to 9.55, mickey to 13.6 and
-  /// the phantom to 12.8 and left the others where they were.
+  /// the phantom to 12.8 and left the others where they were. Then the optimizer's off-interface
+  /// moves (Optimize.h): knee 12.71, frogtissue 10.26, digimouse 10.58, example_seg_dicom 10.35,
+  /// example_seg 6.32, mickey 14.9; colin27, spheres_argmax and the phantom unchanged.
   double minWorstAngle = 0;
   /// Ceiling on the number of tets (issue 13: fewer elements), a few per cent above the count
   /// measured 2026-11-25 with TetGen's dihedral bound 3: knee 506,594, colin27 2,773,833,
@@ -140,14 +142,14 @@ TEST_P(RealData, MeshesWithAllLabelsConformalAndFaithful) {
 INSTANTIATE_TEST_SUITE_P(
     SharedData, RealData,
     ::testing::Values(Case{"420.nrrd", 1}, Case{"40420.nrrd", 1}, Case{"12323.nrrd", 1},
-                      Case{"20012323.nrrd", 1}, Case{"mickey.nrrd", 10, 0.90, 13.5, 35600},
+                      Case{"20012323.nrrd", 1}, Case{"mickey.nrrd", 10, 0.90, 14.7, 35600},
                       Case{"spheres_argmax.nrrd", 10, 0.90, 12.6, 8450},
                       Case{"colin27_v3.nrrd", 10, 0.90, 6.9, 2857000},
-                      Case{"digimouse.nrrd", 10, 0.85, 6.8, 739000},
-                      Case{"frogtissue.nrrd", 10, 0.85, 9.5, 845000},
-                      Case{"example_seg.nii.gz", 10, 0.85, 5.5, 64950},
-                      Case{"example_seg_dicom.nii.gz", 10, 0.85, 6.7, 170400},
-                      Case{"9135902_00m_WB01.nii.gz", 10, 0.90, 9.1, 521800}),
+                      Case{"digimouse.nrrd", 10, 0.85, 10.4, 739000},
+                      Case{"frogtissue.nrrd", 10, 0.85, 10.1, 845000},
+                      Case{"example_seg.nii.gz", 10, 0.85, 6.2, 64950},
+                      Case{"example_seg_dicom.nii.gz", 10, 0.85, 10.2, 170400},
+                      Case{"9135902_00m_WB01.nii.gz", 10, 0.90, 12.5, 521800}),
     [](const ::testing::TestParamInfo<Case>& info) {
       std::string n = info.param.file;
       for (auto& ch : n)
@@ -157,7 +159,7 @@ INSTANTIATE_TEST_SUITE_P(
 
 TEST(RealDataPhantom, BuiltInPhantomMeshes) {
   const LabelVolume v = makePhantom();
-  checkVolume(v, MeshingParameters{}, "phantom", 0.90, nullptr, kMinVolumeDice, 10.3);
+  checkVolume(v, MeshingParameters{}, "phantom", 0.90, nullptr, kMinVolumeDice, 12.6);
 }
 
 // Issue 13: the presets mean something. On the phantom, coarse, default and fine span at least

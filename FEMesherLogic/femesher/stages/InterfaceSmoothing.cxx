@@ -44,6 +44,22 @@ bool toInterface(const IndicatorField& f, int a, int b, Vec3& x) {
   return false;
 }
 
+/// A projection that leaves a point anywhere within `offset` of where `onto` would put it: farther
+/// points are pulled back to 0.95 × offset along the projection, which (a Newton descent, not the
+/// exact nearest point) is then checked again from where the point ends.
+std::function<bool(Vec3&)> withinOffset(std::function<bool(Vec3&)> onto, double offset) {
+  return [onto = std::move(onto), offset](Vec3& p) {
+    Vec3 q = p;
+    if (!onto(q)) return false;
+    const Vec3 d = sub(p, q);
+    const double len = norm(d);
+    if (len > 0.95 * offset)
+      for (int k = 0; k < 3; ++k) p[k] = q[k] + d[k] * 0.95 * offset / len;
+    q = p;
+    return onto(q) && norm(sub(p, q)) <= offset;
+  };
+}
+
 /// Share of the facet distance an interface triangle may always reach (see smoothInterfaceVertex).
 constexpr double kFacetShare = 0.25;
 
@@ -144,7 +160,7 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
   kind = std::min(int(materials.size()), 4);
   const Vec3 lineDirection = kind == 3 ? tripleLineDirection(faces) : Vec3{0, 0, 0};
   if (kind == 3 && (!in.projectOntoJunction || !(norm(lineDirection) > 0))) return false;
-  if (offset > 0 && kind != 2) return false;
+  if (offset > 0 && kind != 2 && kind != 3) return false;
   MoveConstraint c;
   const Vec3 start = m.pts[size_t(v)];
   if (kind == 4) {
@@ -172,21 +188,6 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
     };
     const int a = materials[0], b = materials[1];
     c.project = [&in, a, b](Vec3& p) { return in.projectOntoInterface(a, b, p); };
-    if (offset > 0) {  // anywhere within `offset` of the interface
-      c.tangent = nullptr;
-      // Pulled back to 0.95 × offset along the projection; the projection (a Newton descent,
-      // not the exact nearest point) is then checked again from where the point ends.
-      c.project = [&in, a, b, offset](Vec3& p) {
-        Vec3 q = p;
-        if (!in.projectOntoInterface(a, b, q)) return false;
-        const Vec3 d = sub(p, q);
-        const double len = norm(d);
-        if (len > 0.95 * offset)
-          for (int k = 0; k < 3; ++k) p[k] = q[k] + d[k] * 0.95 * offset / len;
-        q = p;
-        return in.projectOntoInterface(a, b, q) && norm(sub(p, q)) <= offset;
-      };
-    }
     if (box != 0) {
       int axis = 0;
       while (!(box & (3 << (2 * axis)))) ++axis;
@@ -218,24 +219,6 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
         }
         return false;
       };
-      if (offset > 0) {  // anywhere in the plane within `offset` of the trace, as above
-        c.tangent = [e](const Vec3& d) {
-          const double x = dot(d, e);
-          return Vec3{d[0] - x * e[0], d[1] - x * e[1], d[2] - x * e[2]};
-        };
-        c.project = [onTrace = c.project, axis, plane, offset](Vec3& p) {
-          p[size_t(axis)] = plane;
-          Vec3 q = p;
-          if (!onTrace(q)) return false;
-          const Vec3 d = sub(p, q);
-          const double len = norm(d);
-          if (len > 0.95 * offset)
-            for (int k = 0; k < 3; ++k) p[k] = q[k] + d[k] * 0.95 * offset / len;
-          p[size_t(axis)] = plane;
-          q = p;
-          return onTrace(q) && norm(sub(p, q)) <= offset;
-        };
-      }
     }
   } else {
     const Vec3 t = lineDirection;
@@ -245,6 +228,20 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
     };
     const std::array<int, 3> abc{{materials[0], materials[1], materials[2]}};
     c.project = [&in, abc](Vec3& p) { return in.projectOntoJunction(abc, p); };
+  }
+  if (offset > 0) {  // anywhere within `offset` of the interface, trace or line
+    c.project = withinOffset(std::move(c.project), offset);
+    if (box == 0) {
+      c.tangent = nullptr;
+    } else {  // in the box's plane
+      int axis = 0;
+      while (!(box & (3 << (2 * axis)))) ++axis;
+      c.tangent = [axis](const Vec3& d) {
+        Vec3 x = d;
+        x[size_t(axis)] = 0;
+        return x;
+      };
+    }
   }
   // Each interface triangle may end at most max(its distance now, a quarter of the facet
   // distance) from its interface (0.95 × the facet distance for an off-interface move), and

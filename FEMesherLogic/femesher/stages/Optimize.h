@@ -78,6 +78,7 @@
 #include <femesher/Types.h>
 
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -161,6 +162,17 @@ struct OptimizeInterfaces {
   /// move (the boundary stage's facet_distance); a move breaking it is refused.
   double facetDistance = 0;
   bool enabled() const { return bool(projectOntoInterface) && facetDistance > 0; }
+  /// The planes of the box (bit 2a: low side of axis a, 2a + 1: high side) p lies on (within
+  /// boxTolerance); 0 without a box.
+  int boxPlanes(const Vec3& p) const {
+    int mask = 0;
+    if (hasBox)
+      for (size_t a = 0; a < 3; ++a) {
+        if (std::fabs(p[a] - boxLo[a]) <= boxTolerance) mask |= 1 << (2 * a);
+        if (std::fabs(p[a] - boxHi[a]) <= boxTolerance) mask |= 2 << (2 * a);
+      }
+    return mask;
+  }
 };
 
 struct OptimizeResult {

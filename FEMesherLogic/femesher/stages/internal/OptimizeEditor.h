@@ -25,17 +25,8 @@ constexpr double kDegToRad = 1 / kRadToDeg;
 /// take in all (Editor::movedVolume).
 constexpr double kVolumeBudget = 1e-3;
 
-/// The planes of the volume's box (bit 2a: low side of axis a, 2a + 1: high side) point p lies on
-/// (within in.boxTolerance); 0 when `in` knows no box.
-inline int boxPlanes(const OptimizeInterfaces& in, const Vec3& p) {
-  int mask = 0;
-  if (in.hasBox)
-    for (int a = 0; a < 3; ++a) {
-      if (std::fabs(p[size_t(a)] - in.boxLo[size_t(a)]) <= in.boxTolerance) mask |= 1 << (2 * a);
-      if (std::fabs(p[size_t(a)] - in.boxHi[size_t(a)]) <= in.boxTolerance) mask |= 2 << (2 * a);
-    }
-  return mask;
-}
+/// The planes of the volume's box point p lies on (OptimizeInterfaces::boxPlanes).
+inline int boxPlanes(const OptimizeInterfaces& in, const Vec3& p) { return in.boxPlanes(p); }
 
 /// Mutable tet mesh with vertex -> tet incidence; faces are found by intersecting incidences.
 class Editor {
