@@ -186,5 +186,8 @@ def contact_case(name, order, coarser=()):
 contact_case("contact", 1)
 # C3D10 on a coarser mesh (edge_length_factor 4.5 instead of 3): a quarter of the unknowns of the
 # fine C3D10 deck, which took CalculiX about 11 minutes on 2 cores.
-contact_case("contact_c3d10", 2, ["--set", "edge_length_factor=4.5"])
+# In a fresh-clone run (2026-11-25) CalculiX took more than 16 minutes on this deck, which would
+# break CI's 30-minute budget: it runs only when FEMESHER_SLOW_TESTS=1 until the case is smaller.
+if os.environ.get("FEMESHER_SLOW_TESTS") == "1":
+    contact_case("contact_c3d10", 2, ["--set", "edge_length_factor=4.5"])
 check.finish()
