@@ -53,12 +53,6 @@ void keepInBox(const OptimizeInterfaces& in, int planes, Vec3& p) {
   }
 }
 
-int popcount(int x) {
-  int n = 0;
-  for (; x; x &= x - 1) ++n;
-  return n;
-}
-
 /// Vertex -> incident tets, compressed rows.
 struct Incidence {
   std::vector<int32_t> start, tets;
@@ -161,7 +155,7 @@ QuadraticCurvingResult curveMidEdgeNodes(const TetMesh& mesh, const OptimizeInte
     const Vec3 &pu = mesh.points[size_t(u)], &pv = mesh.points[size_t(v)];
     const int planes = in.boxPlanes(pu) & in.boxPlanes(pv);
     // Flat box faces and box edges are exact already: their nodes stay at the midpoint.
-    if (e.box && (e.count == 0 || popcount(planes) >= 2)) continue;
+    if (e.box && (e.count == 0 || __builtin_popcount(unsigned(planes)) >= 2)) continue;
     ++r.surfaceNodes;
     const Vec3 mid = scale(add(pu, pv), 0.5);
     const double length = norm(sub(pu, pv));

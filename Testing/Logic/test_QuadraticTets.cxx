@@ -41,31 +41,9 @@ TetMesh jitteredTwoMaterialMesh(int n) {
   return m;
 }
 
-/// Determinant of the Jacobian of the 10-node isoparametric map (C3D10 / VTK node order) at
-/// natural coordinates (r, s, t), with u = 1 - r - s - t.
-double tet10Jacobian(const std::array<Vec3, 10>& x, double r, double s, double t) {
-  const double u = 1 - r - s - t;
-  // dN/dr, dN/ds, dN/dt of N0 = u(2u-1), N1 = r(2r-1), N2 = s(2s-1), N3 = t(2t-1),
-  // N4 = 4ru, N5 = 4rs, N6 = 4su, N7 = 4tu, N8 = 4rt, N9 = 4st.
-  const double dr[10] = {1 - 4 * u, 4 * r - 1, 0, 0, 4 * (u - r), 4 * s, -4 * s, -4 * t, 4 * t, 0};
-  const double ds[10] = {1 - 4 * u, 0, 4 * s - 1, 0, -4 * r, 4 * r, 4 * (u - s), -4 * t, 0, 4 * t};
-  const double dt[10] = {1 - 4 * u, 0, 0, 4 * t - 1, -4 * r, 0, -4 * s, 4 * (u - t), 4 * r, 4 * s};
-  double J[3][3] = {};
-  for (int a = 0; a < 10; ++a)
-    for (int c = 0; c < 3; ++c) {
-      J[c][0] += dr[a] * x[size_t(a)][size_t(c)];
-      J[c][1] += ds[a] * x[size_t(a)][size_t(c)];
-      J[c][2] += dt[a] * x[size_t(a)][size_t(c)];
-    }
-  return J[0][0] * (J[1][1] * J[2][2] - J[1][2] * J[2][1]) -
-         J[0][1] * (J[1][0] * J[2][2] - J[1][2] * J[2][0]) +
-         J[0][2] * (J[1][0] * J[2][1] - J[1][1] * J[2][0]);
-}
-
-/// Natural coordinates (r, s, t) of the ten nodes.
-const double kNodeRst[10][3] = {{0, 0, 0},     {1, 0, 0},     {0, 1, 0},   {0, 0, 1},
-                                {0.5, 0, 0},   {0.5, 0.5, 0}, {0, 0.5, 0}, {0, 0, 0.5},
-                                {0.5, 0, 0.5}, {0, 0.5, 0.5}};
+/// The library's first ten check points are the natural coordinates of the ten nodes (the
+/// eleventh is the centroid).
+constexpr size_t kNodes = 10;
 
 std::string slurp(const fs::path& p) {
   std::ifstream in(p);
@@ -112,8 +90,10 @@ TEST(QuadraticTets, OneNodePerEdgeAtMidpointsPositiveJacobians) {
     EXPECT_GT(m.tetVolume(ti), 0);
     std::array<Vec3, 10> x;
     for (size_t k = 0; k < 10; ++k) x[k] = q.points[size_t(e10[k])];
-    for (const auto& rst : kNodeRst)
-      EXPECT_GT(tet10Jacobian(x, rst[0], rst[1], rst[2]), 0) << "tet " << ti;
+    for (size_t k = 0; k < kNodes; ++k) {
+      const auto& rst = kTet10CheckPoints[k];
+      EXPECT_GT(tet10JacobianDeterminant(x, rst[0], rst[1], rst[2]), 0) << "tet " << ti;
+    }
   }
   EXPECT_EQ(usedMid.size(), edges.size());
   // Two vertices that share no tet have no mid-edge node.
@@ -128,7 +108,10 @@ TEST(QuadraticTets, JacobianCheckSeesSwappedMidNodes) {
   std::array<Vec3, 10> x;
   for (size_t k = 0; k < 10; ++k) x[k] = q.points[size_t(q.tets[0][size_t(kGmshTet10Order[k])])];
   bool negative = false;
-  for (const auto& rst : kNodeRst) negative |= tet10Jacobian(x, rst[0], rst[1], rst[2]) <= 0;
+  for (size_t k = 0; k < kNodes; ++k) {
+    const auto& rst = kTet10CheckPoints[k];
+    negative |= tet10JacobianDeterminant(x, rst[0], rst[1], rst[2]) <= 0;
+  }
   EXPECT_TRUE(negative);
 }
 

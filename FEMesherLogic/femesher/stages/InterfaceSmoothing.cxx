@@ -85,9 +85,9 @@ void vertexInterfaces(const Editor& m, const OptimizeInterfaces& in, int32_t v,
       const int64_t s = m.across(t, f[0], f[1], f[2]);
       const int own = m.labels[t], other = s < 0 ? 0 : m.labels[size_t(s)];
       if (other == own || (s >= 0 && other < own)) continue;  // inside, or seen from the other side
-      if (s < 0 && (optimize_detail::boxPlanes(in, m.pts[size_t(f[0])]) &
-                    optimize_detail::boxPlanes(in, m.pts[size_t(f[1])]) &
-                    optimize_detail::boxPlanes(in, m.pts[size_t(f[2])])) != 0)
+      if (s < 0 && (in.boxPlanes(m.pts[size_t(f[0])]) &
+                    in.boxPlanes(m.pts[size_t(f[1])]) &
+                    in.boxPlanes(m.pts[size_t(f[2])])) != 0)
         continue;  // on the volume's box: not an interface
       if (s < 0) materials.push_back(0);
       const Vec3& A = m.pts[size_t(f[0])];
@@ -151,7 +151,7 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
   kind = 0;
   // On the volume's box: only on one of its planes, between two materials; it then moves along
   // the line where their interface meets that plane.
-  const int box = boxPlanes(in, m.pts[size_t(v)]);
+  const int box = in.boxPlanes(m.pts[size_t(v)]);
   if (box != 0 && (box & (box - 1)) != 0) return false;  // a box edge or corner
   std::vector<int> materials;
   std::vector<InterfaceFace> faces;
@@ -272,7 +272,7 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
     volumeChange(change);
     for (size_t l = 0; l < change.size(); ++l)
       if (std::fabs(m.movedVolume[l] + change[l]) > kVolumeBudget * m.startVolume[l]) return false;
-    return boxPlanes(in, m.pts[size_t(v)]) == box;
+    return in.boxPlanes(m.pts[size_t(v)]) == box;
   };
   if (!smoothVertex(m, v, &c)) return false;
   volumeChange(change);

@@ -283,8 +283,8 @@ bool outerEdge(const Editor& m, uint32_t t, int32_t u, int32_t v) {
 
 /// True when the three vertices of f lie on one plane of the volume's box.
 bool onBoxPlane(const Editor& m, const OptimizeInterfaces& in, const std::array<int32_t, 3>& f) {
-  return (boxPlanes(in, m.pts[size_t(f[0])]) & boxPlanes(in, m.pts[size_t(f[1])]) &
-          boxPlanes(in, m.pts[size_t(f[2])])) != 0;
+  return (in.boxPlanes(m.pts[size_t(f[0])]) & in.boxPlanes(m.pts[size_t(f[1])]) &
+          in.boxPlanes(m.pts[size_t(f[2])])) != 0;
 }
 
 /// The facet-distance rule of peeling (Optimize.h): t's outer faces are not on the box, its other

@@ -133,8 +133,8 @@ bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, const OptimizeIn
     const bool goneOuter = materialsAndOuter(m.around[size_t(gone)], gone, -1, goneMats);
     if (edgeMats != goneMats || (goneOuter && !edgeOuter)) continue;
     // A vertex on the volume's box keeps every box plane it is on: the box stays exact.
-    const int goneBox = boxPlanes(in, m.pts[size_t(gone)]);
-    if ((goneBox & boxPlanes(in, m.pts[size_t(keep)])) != goneBox) continue;
+    const int goneBox = in.boxPlanes(m.pts[size_t(gone)]);
+    if ((goneBox & in.boxPlanes(m.pts[size_t(keep)])) != goneBox) continue;
     if (!linkCondition(m, keep, gone, -1)) continue;
     bool ok = true;
     for (int32_t label : goneMats) ok = ok && linkCondition(m, keep, gone, label);

@@ -25,9 +25,6 @@ constexpr double kDegToRad = 1 / kRadToDeg;
 /// take in all (Editor::movedVolume).
 constexpr double kVolumeBudget = 1e-3;
 
-/// The planes of the volume's box point p lies on (OptimizeInterfaces::boxPlanes).
-inline int boxPlanes(const OptimizeInterfaces& in, const Vec3& p) { return in.boxPlanes(p); }
-
 /// Mutable tet mesh with vertex -> tet incidence; faces are found by intersecting incidences.
 class Editor {
  public:
