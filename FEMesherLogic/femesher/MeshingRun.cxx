@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/MeshingRun.h>
+#include <femesher/DeferredCurving.h>
 #include <femesher/io/ContactSplit.h>
 #include <femesher/stages/InterfaceSmoothing.h>
 
@@ -297,46 +298,42 @@ void MeshingRun::prepareExport() {
   if (params_.elementOrder == 2) curveQuadraticNodes();
   const size_t vertices = state_.mesh.points.size();
   state_.contacts = splitContactInterfaces(state_.mesh, params_.contactPairs);
-  if (state_.midEdgeNodes && state_.mesh.points.size() > vertices) remapMidEdgeNodes(vertices);
+  if (state_.midEdgeNodes && state_.mesh.points.size() > vertices)
+    state_.midEdgeNodes = midEdgeNodesWithCopies(*state_.midEdgeNodes, state_.mesh, vertices);
   state_.boxNodeSets = boxFaceNodeSets(state_.mesh, input_);
 }
 
 void MeshingRun::curveQuadraticNodes() {
   if (!state_.field) return;
   // In the canonical frame with compact labels: the frame and materials of the indicators.
+  state_.midEdgeNodes = curvePhysicalMidEdgeNodes(canonicalMesh(), *state_.field,
+                                                  params_.boundary.facetDistance, input_,
+                                                  state_.quadratic, ctx_);
+}
+
+TetMesh MeshingRun::canonicalMesh() const {
   const VolumeMeshResult& vm = state_.volumeMesh;
   TetMesh canonical;
   canonical.points = vm.points;
   canonical.tets = vm.tets;
   canonical.tetLabels = vm.labels;
-  const OptimizeInterfaces interfaces =
-      indicatorInterfaces(*state_.field, params_.boundary.facetDistance);
-  QuadraticCurvingResult r = curveMidEdgeNodes(canonical, interfaces, {}, ctx_);
-  auto nodes = std::make_shared<MidEdgePositions>();
-  nodes->reserve(r.nodes.size());
-  for (const auto& [key, p] : r.nodes) (*nodes)[key] = input_.canonicalToPhysical(p);
-  r.nodes.clear();
-  state_.quadratic = std::move(r);
-  state_.midEdgeNodes = std::move(nodes);
+  return canonical;
 }
 
-void MeshingRun::remapMidEdgeNodes(size_t firstCopy) {
-  // A copy sits exactly where its original is (ContactSplit.h).
-  const std::vector<Vec3>& points = state_.mesh.points;
-  std::map<Vec3, int32_t> originalAt;
-  for (size_t i = 0; i < firstCopy; ++i) originalAt.emplace(points[i], int32_t(i));
-  std::vector<int32_t> original(points.size());
-  for (size_t i = 0; i < points.size(); ++i)
-    original[i] = i < firstCopy ? int32_t(i) : originalAt.at(points[i]);
-  const MidEdgePositions& before = *state_.midEdgeNodes;
-  auto nodes = std::make_shared<MidEdgePositions>();
-  for (const auto& t : state_.mesh.tets)
-    for (const auto& e : kTet10Edges) {
-      const int32_t a = t[size_t(e[0])], b = t[size_t(e[1])];
-      const auto it = before.find(tetEdgeKey(original[size_t(a)], original[size_t(b)]));
-      if (it != before.end()) (*nodes)[tetEdgeKey(a, b)] = it->second;
-    }
-  state_.midEdgeNodes = std::move(nodes);
+std::shared_ptr<const DeferredCurving> MeshingRun::keepForCurving() {
+  if (!state_.field || state_.volumeMesh.tets.empty()) return nullptr;
+  VolumeMeshResult& vm = state_.volumeMesh;  // moved, not copied: the run ends here
+  TetMesh canonical;
+  canonical.points = std::move(vm.points);
+  canonical.tets = std::move(vm.tets);
+  canonical.tetLabels = std::move(vm.labels);
+  auto kept = std::make_shared<const DeferredCurving>(std::move(state_.grid),
+                                                      std::move(state_.field), std::move(canonical),
+                                                      params_.boundary.facetDistance, input_);
+  state_.grid = PreprocessedVolume{};
+  vm = VolumeMeshResult{};
+  next_ = int(stageTable().size());  // nothing more can run without the grid and the field
+  return kept;
 }
 
 ReportCounts MeshingRun::reportCounts() const {

@@ -11,6 +11,7 @@
 /// uniform sizing, Fidelity with compute_fidelity off) are skipped. Each stage is timed and
 /// reported to the RunContext (progress, cancel). Errors are thrown as femesher::Error.
 
+#include <femesher/DeferredCurving.h>
 #include <femesher/MeshCheck.h>
 #include <femesher/Parameters.h>
 #include <femesher/QuadraticCurving.h>
@@ -123,6 +124,13 @@ class MeshingRun {
   /// split moves nothing). Throws InvalidArgument for a pair the mesh has no interface of.
   void prepareExport();
 
+  /// After prepareExport, for a result of element_order 1: moves the working grid and the
+  /// indicator functions out of the run, with a copy of the final linear mesh in the canonical
+  /// frame, into a DeferredCurving that curves the mid-edge nodes later exactly as
+  /// prepareExport would at element_order 2 (DeferredCurving.h). The run keeps no grid or field
+  /// afterwards and runs no more stages. Null when the run has no field or no volume mesh.
+  std::shared_ptr<const DeferredCurving> keepForCurving();
+
   /// Every stage result's counts, in report order.
   ReportCounts reportCounts() const;
 
@@ -143,11 +151,11 @@ class MeshingRun {
   void fidelity();
   /// Canonical frame, compact labels -> physical LPS, user labels; warns about lost materials.
   void toPhysical();
-  /// prepareExport's curving of the mid-edge nodes (element_order 2), before the contact split.
+  /// prepareExport's curving of the mid-edge nodes (element_order 2), before the contact split
+  /// (curvePhysicalMidEdgeNodes; midEdgeNodesWithCopies after the split).
   void curveQuadraticNodes();
-  /// After the contact split added node copies (vertices from `firstCopy` on): the curved nodes
-  /// of the edges of the copies, from the edges they copy.
-  void remapMidEdgeNodes(size_t firstCopy);
+  /// The final linear mesh in the canonical frame with compact labels (what curving takes).
+  TetMesh canonicalMesh() const;
 
   const LabelVolume& input_;
   const MeshingParameters params_;

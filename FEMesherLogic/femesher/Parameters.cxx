@@ -246,8 +246,10 @@ const std::vector<Binding>& bindings() {
         [](const MeshingParameters& p) { return p.defaultMaterial.density; });
     add({"element_order", "int", "", "", 1, 2, "Element order",
          "1: 4-node tets (C3D4, tet4). 2: 10-node tets (C3D10 in .inp, Gmsh type 11 in .msh, "
-         "VTK quadratic tetra in .vtu/.vtk, tet10 in .feb), one mid-edge node per edge at the "
-         "straight edge midpoint, shared across materials. .mesh and .stl cannot hold them.", true},
+         "VTK quadratic tetra in .vtu/.vtk, tet10 in .feb), one mid-edge node per edge, shared "
+         "across materials: on interfaces and the outer boundary curved onto the smooth surface "
+         "where every element stays valid, elsewhere at the straight edge midpoint. .mesh and "
+         ".stl cannot hold them.", true},
         [](MeshingParameters& p, double x) { p.elementOrder = int(x); },
         [](const MeshingParameters& p) { return double(p.elementOrder); });
     return v;

@@ -47,6 +47,8 @@ PipelineResult collect(MeshingRun& run, RunContext& ctx,
   result.mesh = std::move(s.mesh);
   result.quality = std::move(s.quality);
   result.fidelity = std::move(s.fidelity);
+  // Last: it moves the grid and the indicator functions out of the run.
+  if (run.parameters().elementOrder != 2) result.deferredCurving = run.keepForCurving();
   return result;
 }
 

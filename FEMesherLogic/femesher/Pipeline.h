@@ -33,6 +33,11 @@ struct PipelineResult {
   /// With element_order 2: the mid-edge nodes curved onto the smooth interfaces (physical LPS, by
   /// tetEdgeKey of `mesh`'s vertices): what ExportOptions::midEdgeNodes takes. Null otherwise.
   std::shared_ptr<const MidEdgePositions> midEdgeNodes;
+  /// With element_order 1: what curving those nodes needs, kept from the run, so that a host
+  /// switched to order 2 afterwards exports the nodes a run at order 2 would have curved
+  /// (`deferredCurving->midEdgeNodes(mesh, ctx)`; DeferredCurving.h). Null at order 2 (the nodes
+  /// are in `midEdgeNodes`) and for a run without indicator functions.
+  std::shared_ptr<const DeferredCurving> deferredCurving;
   std::vector<StageTiming> timings; ///< wall seconds per stage, in run order
   std::vector<std::string> warnings;
   /// Counts by name: "surface_samples", "surface_triangles", "vertices", "tets", ...

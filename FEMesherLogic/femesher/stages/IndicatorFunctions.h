@@ -22,6 +22,7 @@
 #include <femesher/stages/LabelPreprocess.h>
 
 #include <array>
+#include <cstddef>
 #include <vector>
 
 namespace femesher {
@@ -45,6 +46,15 @@ class IndicatorField {
   };
 
   const PreprocessedVolume& volume() const { return *vol_; }
+  /// Points the field at `volume`, which must hold the same grid as the one it was computed on
+  /// (that volume moved or copied elsewhere): keeping a field beyond its run (DeferredCurving.h).
+  void rebind(const PreprocessedVolume& volume) { vol_ = &volume; }
+  /// Bytes of the stored samples (one float per voxel of each material's box plus band).
+  size_t storedBytes() const {
+    size_t n = 0;
+    for (const Box& b : boxes_) n += b.f.capacity() * sizeof(float);
+    return n;
+  }
   int labelCount() const { return int(boxes_.size()); }  ///< compact ids 0..N
 
   /// f_m at a voxel centre (local index); far negative outside m's box.
