@@ -28,6 +28,7 @@
 #include <QPushButton>
 #include <QScrollArea>
 #include <QTableWidget>
+#include <QThread>
 #include <QVBoxLayout>
 
 #include <cmath>
@@ -308,6 +309,7 @@ void qFEMesherPanelWidget::buildRunSection(QVBoxLayout* layout) {
   progress_->setFormat(tr("Idle"));
   layout->addWidget(progress_);
   message_ = new QLabel(this);
+  message_->setObjectName(QStringLiteral("message"));
   message_->setWordWrap(true);
   message_->setTextInteractionFlags(Qt::TextSelectableByMouse);
   layout->addWidget(message_);
@@ -346,7 +348,34 @@ void qFEMesherPanelWidget::buildExportSection(QVBoxLayout* layout) {
 
 }
 
-qFEMesherPanelWidget::~qFEMesherPanelWidget() = default;
+qFEMesherPanelWidget::~qFEMesherPanelWidget() {
+  if (curving_) {
+    disconnect(curving_, nullptr, this, nullptr);
+    curvingCtx_->cancel();
+    curving_->wait();
+    delete curving_;
+  }
+}
+
+void qFEMesherPanelWidget::startCurving() {
+  if (curving_ || !result_ || result_->midEdgeNodes || !result_->deferredCurving) return;
+  // Curve the kept result's mid-edge nodes in a worker (about 2 s on a 500 k-tet knee), so the
+  // export after the switch finds them ready; an export that comes first waits for them
+  // (DeferredCurving curves once, under a lock). The worker holds its own reference to the result.
+  auto result = result_;
+  auto ctx = std::make_shared<femesher::RunContext>();
+  curvingCtx_ = ctx;
+  curving_ = QThread::create([result, ctx] {
+    // A failure (or a cancel) leaves the nodes uncomputed: the export curves them itself and
+    // shows the error there.
+    femesher::runGuarded([&] { result->deferredCurving->midEdgeNodes(result->mesh, *ctx); });
+  });
+  connect(curving_, &QThread::finished, this, [this] {
+    curving_->deleteLater();
+    curving_ = nullptr;
+  });
+  curving_->start(QThread::LowPriority);
+}
 
 // --- input ----------------------------------------------------------------------------------------
 
@@ -619,6 +648,7 @@ QString qFEMesherPanelWidget::matchingPreset() const {
     femesher::MeshingParameters p = preset.value();
     p.defaultMaterial = mine.defaultMaterial;  // material properties are not part of a preset
     p.run.threads = mine.run.threads;          // neither is the thread count
+    p.elementOrder = mine.elementOrder;        // nor the element order (an export choice)
     if (femesher::parametersToJson(p) == femesher::parametersToJson(mine))
       return QString::fromStdString(name);
   }
@@ -635,6 +665,7 @@ bool qFEMesherPanelWidget::applyPreset(const QString& name) {
   p.preprocess.excluded = current.preprocess.excluded;
   p.preprocess.names = current.preprocess.names;
   p.run.threads = current.run.threads;
+  p.elementOrder = current.elementOrder;
   setParameters(p);
   return true;
 }
@@ -651,6 +682,15 @@ void qFEMesherPanelWidget::onParameterEdited() {
   const QString match = matchingPreset();
   preset_->setCurrentIndex(preset_->findData(match));
   updateSizeHint();
+  // The element order applies to the kept mesh's exports at once: say what they will write.
+  if (sender() == editors_.value(QStringLiteral("element_order")) && result_) {
+    const QString note = elementOrderNote();
+    if (!result_->midEdgeNodes && parameters().elementOrder == 2 && !result_->deferredCurving)
+      showError(note);
+    else
+      showInfo(note);
+    if (parameters().elementOrder == 2) startCurving();
+  }
   // The minimum voxel count colours the table.
   if (sender() == editors_.value(QStringLiteral("min_voxels"))) {
     const auto minVoxels = parameters().preprocess.minVoxels;
@@ -825,6 +865,27 @@ void qFEMesherPanelWidget::onSucceeded(std::shared_ptr<const femesher::PipelineR
   emit runEnded(state_, message_->text());
 }
 
+QString qFEMesherPanelWidget::elementOrderNote() const {
+  if (!result_) return QString();
+  const bool quadraticRun = result_->midEdgeNodes != nullptr;
+  if (parameters().elementOrder != 2)
+    return quadraticRun ? tr("Element order 1: the exports write 4-node tets, the corners of the "
+                             "mesh shown (as a run at element order 1 would).")
+                        : tr("Element order 1: the exports write 4-node tets.");
+  if (quadraticRun)
+    return tr("Element order 2: the exports write 10-node tets with the mid-edge nodes this run "
+              "curved onto the interfaces.");
+  if (result_->deferredCurving)
+    return tr("Element order 2: the mesh shown was made at order 1. The exports write 10-node "
+              "tets whose mid-edge nodes are curved onto the run's smooth interfaces (from what "
+              "the run kept, computed now in the background), exactly as a run at element order 2 "
+              "would place them; no re-run needed.");
+  return tr("Element order 2: the mesh shown was made at order 1 and its run kept no smooth "
+            "interfaces to curve mid-edge nodes onto, so it cannot be exported with 10-node tets "
+            "as a run at order 2 would write them. Run again at element order 2, or set it back "
+            "to 1.");
+}
+
 QString qFEMesherPanelWidget::keptResultNote() const {
   if (!result_) return tr("There is no earlier mesh.");
   return tr("The previous mesh (%1 tets) is kept: it is the one shown and exported.")
@@ -883,12 +944,39 @@ bool qFEMesherPanelWidget::exportMesh(const QString& path) {
   options.contacts = result_->contacts;
   options.nodeSets = result_->boxNodeSets;
   options.midEdgeNodes = result_->midEdgeNodes;
+  if (femesher::Status s = femesher::checkExportable(path.toStdString(), options); !s) {
+    showError(QString::fromStdString(s.message()));
+    return false;
+  }
+  QString curvedNote;
+  if (options.elementOrder == 2 && !options.midEdgeNodes) {
+    // The mesh was made at element order 1: curve its mid-edge nodes now, from what the run kept,
+    // exactly as a run at order 2 would have. Never write straight-sided nodes instead.
+    if (!result_->deferredCurving) {
+      showError(elementOrderNote());
+      return false;
+    }
+    femesher::RunContext ctx;
+    const femesher::Status s = femesher::runGuarded([&] {
+      options.midEdgeNodes = result_->deferredCurving->midEdgeNodes(result_->mesh, ctx);
+    });
+    if (!s) {
+      showError(tr("Could not curve the mid-edge nodes for %1: %2")
+                    .arg(path, QString::fromStdString(s.message())));
+      return false;
+    }
+    const femesher::QuadraticCurvingResult f = result_->deferredCurving->figures();
+    curvedNote = tr(" (10-node tets: %1 mid-edge nodes curved onto the interfaces, %2 part of the "
+                    "way, as a run at element order 2 curves them)")
+                     .arg(f.curvedNodes)
+                     .arg(f.partlyCurvedNodes);
+  }
   const femesher::Status s = femesher::writeMesh(result_->mesh, path.toStdString(), options);
   if (!s) {
     showError(QString::fromStdString(s.message()));
     return false;
   }
-  showInfo(tr("Exported %1").arg(path));
+  showInfo(tr("Exported %1").arg(path) + curvedNote);
   emit meshExported(path);
   return true;
 }

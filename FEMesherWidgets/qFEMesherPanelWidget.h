@@ -46,6 +46,7 @@ class QProgressBar;
 class QScrollArea;
 class QPushButton;
 class QTableWidget;
+class QThread;
 class qFEMesherRunner;
 
 Q_DECLARE_METATYPE(std::shared_ptr<const femesher::LabelVolume>)
@@ -114,7 +115,10 @@ class qFEMesherPanelWidget : public QWidget {
   static QString stageTitle(const QString& stage);
 
   // --- export -------------------------------------------------------------------------------------
-  /// Write the last result (format from the extension) with the panel's material properties.
+  /// Write the last result (format from the extension) with the panel's material properties and
+  /// element order. A result made at order 1 exported at order 2 gets its mid-edge nodes curved
+  /// from what the run kept (PipelineResult::deferredCurving), the nodes a run at order 2 writes;
+  /// without that the export is refused with a message (never straight-sided nodes silently).
   bool exportMesh(const QString& path);
   QStringList exportExtensions() const;
   QPushButton* exportButton(const QString& extension) const { return exportButtons_.value(extension); }
@@ -162,6 +166,10 @@ class qFEMesherPanelWidget : public QWidget {
   std::string editorValue(const std::string& key) const;
   QString matchingPreset() const;
   QString keptResultNote() const;
+  /// What the exports of the kept result write at the element order now set (after a switch).
+  QString elementOrderNote() const;
+  /// After a switch to element order 2: curves the kept result's mid-edge nodes in a worker.
+  void startCurving();
 
   std::shared_ptr<const femesher::LabelVolume> volume_;
   std::shared_ptr<const femesher::PipelineResult> result_;
@@ -188,5 +196,7 @@ class qFEMesherPanelWidget : public QWidget {
   QMap<QString, QPushButton*> exportButtons_;
   QPushButton* saveParams_ = nullptr;
   QPushButton* loadParams_ = nullptr;
+  QThread* curving_ = nullptr;  ///< startCurving's worker while it runs
+  std::shared_ptr<femesher::RunContext> curvingCtx_;
   femesher::MeshingParameters hidden_;  ///< fields without an editor keep their values here
 };
