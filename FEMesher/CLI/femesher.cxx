@@ -46,26 +46,42 @@ int fail(const Status& s) {
   return exitCodeFor(s.code());
 }
 
-Status writeText(const std::string& path, const std::string& text) {
-  return writeAtomically(path, [&](const std::string& tmp) {
+/// A FileWriter writing `text` and a newline.
+FileWriter textWriter(const std::string& path, const std::string& text) {
+  return [path, text](const std::string& tmp) {
     std::ofstream out(tmp);
     out << text << "\n";
     out.close();
-    if (!out) return Status(ErrorCode::WriteFailed, "Cannot write '" + path + "'");
+    if (!out)
+      return Status(ErrorCode::WriteFailed,
+                    "Cannot write '" + path + "': the disk may be full or the folder not writable.");
     return Status::ok();
-  });
+  };
+}
+
+Status writeText(const std::string& path, const std::string& text) {
+  return writeAtomically(path, textWriter(path, text));
 }
 
 /// Checks outputs before a long run: supported extension, a format that can hold the
-/// element order asked for (element_order 2: not .mesh or .stl), and an existing folder.
-Status checkOutputs(const std::vector<std::string>& outputs, const MeshingParameters& params) {
+/// element order asked for (element_order 2: not .mesh or .stl), an existing folder, not a
+/// folder itself, and no two outputs (meshes and `others`: report, saved parameters) the same file.
+Status checkOutputs(const std::vector<std::string>& outputs, const MeshingParameters& params,
+                    const std::vector<std::string>& others = {}) {
   const ExportOptions eo = exportOptionsFrom(params);
-  for (const auto& o : outputs) {
-    if (Status s = checkExportable(o, eo); !s) return s;
+  std::vector<std::string> all = outputs;
+  all.insert(all.end(), others.begin(), others.end());
+  if (Status s = checkDistinctOutputs(all); !s) return s;
+  for (const auto& o : all) {
+    if (o.empty()) continue;
+    if (std::find(outputs.begin(), outputs.end(), o) != outputs.end())
+      if (Status s = checkExportable(o, eo); !s) return s;
     const fs::path dir = fs::path(o).has_parent_path() ? fs::path(o).parent_path() : fs::path(".");
     if (!fs::is_directory(dir))
-      return {ErrorCode::WriteFailed,
-              "Output '" + o + "': folder '" + dir.string() + "' does not exist."};
+      return {ErrorCode::WriteFailed, "Output '" + o + "': folder '" + dir.string() +
+                                          "' does not exist. Create it or choose another path."};
+    if (fs::is_directory(o))
+      return {ErrorCode::WriteFailed, "Output '" + o + "' is a folder. Give a file name in it."};
   }
   return Status::ok();
 }
@@ -218,7 +234,8 @@ int runMesh(const MeshOptions& o) {
   if (!params) return fail(params.status());
   if (o.outputs.empty() && o.report.empty() && o.saveParameters.empty())
     return fail({ErrorCode::InvalidArgument, "Nothing to write: give at least one -o OUTPUT."});
-  if (Status s = checkOutputs(o.outputs, params.value()); !s) return fail(s);
+  if (Status s = checkOutputs(o.outputs, params.value(), {o.report, o.saveParameters}); !s)
+    return fail(s);
   if (!o.saveParameters.empty()) {
     if (Status s = writeText(o.saveParameters, parametersToJson(params.value())); !s) return fail(s);
   }
@@ -315,19 +332,22 @@ int writeRunOutputs(const PipelineResult& result, const MeshingParameters& param
   eo.nodeSets = result.boxNodeSets;
   eo.midEdgeNodes = result.midEdgeNodes;
   std::vector<std::string> exportWarnings;
+  // Every output to a temporary file first; renamed into place only when all were written.
+  OutputTransaction outputs;
+  Status status;
   for (const auto& out : o.outputs) {
-    if (Status s = writeMesh(result.mesh, out, eo); !s) {
-      progress.finish(false);
-      return fail(s);
-    }
+    status = outputs.stage(out, [&](const std::string& tmp) { return writeMesh(result.mesh, tmp, eo); });
+    if (!status) break;
     if (std::string w = defaultPropertiesWarning(result.mesh, out, eo); !w.empty())
       exportWarnings.push_back(w);
   }
-  if (!o.report.empty()) {
-    if (Status s = writeText(o.report, addReportWarnings(result.reportJson, exportWarnings)); !s) {
-      progress.finish(false);
-      return fail(s);
-    }
+  if (status && !o.report.empty())
+    status = outputs.stage(o.report, textWriter(o.report, addReportWarnings(result.reportJson,
+                                                                            exportWarnings)));
+  if (status) status = outputs.commit();
+  if (!status) {
+    progress.finish(false);
+    return fail(status);
   }
   progress.finish(true);
   for (const auto& w : exportWarnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
@@ -361,7 +381,7 @@ int runOptimize(const std::string& meshPath, const std::string& labelsPath, cons
   auto params = buildParameters(o);
   if (!params) return fail(params.status());
   if (o.outputs.empty()) return fail({ErrorCode::InvalidArgument, "Nothing to write: give -o OUTPUT."});
-  if (Status s = checkOutputs(o.outputs, params.value()); !s) return fail(s);
+  if (Status s = checkOutputs(o.outputs, params.value(), {o.report}); !s) return fail(s);
   cli::CliProgress progress(cli::CliProgress::detect(o.quiet, false));
   progress.start("Optimizing " + meshPath);
   auto mesh = readMeshFile(meshPath);

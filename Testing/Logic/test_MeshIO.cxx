@@ -3,6 +3,7 @@
 // (a 3x3x3 block of cubes, 6 tets each, two or three materials), read back where FEMesher can
 // (.vtu, .vtk, .msh, .mesh) and checked exactly; INP/FEBio/STL structure checked by parsing.
 #include <femesher/Version.h>
+#include <femesher/io/AtomicFile.h>
 #include <femesher/io/MeshIO.h>
 
 #include "TestShapes.h"
@@ -27,6 +28,7 @@
 #include <sstream>
 #include <string>
 #include <vector>
+
 
 namespace fs = std::filesystem;
 using namespace femesher;
@@ -571,6 +573,82 @@ TEST(MeshIO, OverwriteIsAtomicAndLeavesNoTemporaryFiles) {
   auto back = readMesh(dir + "/x.vtu");
   ASSERT_TRUE(back.isOk());
   EXPECT_EQ(back->tets.size(), b.tets.size());
+}
+
+/// The files of `dir` (hidden ones too) with their content.
+std::map<std::string, std::string> folderContent(const std::string& dir) {
+  std::map<std::string, std::string> files;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    std::ifstream in(e.path(), std::ios::binary);
+    std::ostringstream text;
+    text << in.rdbuf();
+    files[e.path().filename().string()] = text.str();
+  }
+  return files;
+}
+
+TEST(MeshIO, OutputTransactionWritesAllOrNothing) {
+  const std::string dir = tmpDir() + "/transaction";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::ofstream(dir + "/old.vtu") << "old";
+  const auto before = folderContent(dir);
+  const TetMesh m = twoMaterialCube();
+  auto mesh = [&](const std::string& tmp) { return writeMesh(m, tmp); };
+  {  // the second output fails: nothing is written, the existing file is kept
+    OutputTransaction t;
+    ASSERT_TRUE(t.stage(dir + "/old.vtu", mesh).isOk());
+    const Status s = t.stage(dir + "/new.inp", [&](const std::string& tmp) {
+      return Status(ErrorCode::WriteFailed, "Cannot write '" + tmp + "': disk full");
+    });
+    EXPECT_EQ(s.code(), ErrorCode::WriteFailed);
+    EXPECT_NE(s.message().find("'" + dir + "/new.inp'"), std::string::npos) << s.message();
+    EXPECT_EQ(t.commit().code(), ErrorCode::WriteFailed);
+  }
+  EXPECT_EQ(folderContent(dir), before);
+  {  // abandoned before commit: nothing is written
+    OutputTransaction t;
+    ASSERT_TRUE(t.stage(dir + "/old.vtu", mesh).isOk());
+    ASSERT_TRUE(t.stage(dir + "/new.msh", mesh).isOk());
+  }
+  EXPECT_EQ(folderContent(dir), before);
+  {  // a rename fails half way (the second target became a folder): the first is put back
+    OutputTransaction t;
+    ASSERT_TRUE(t.stage(dir + "/old.vtu", mesh).isOk());
+    ASSERT_TRUE(t.stage(dir + "/new.vtu", mesh).isOk());
+    ASSERT_TRUE(t.stage(dir + "/blocked.inp", mesh).isOk());
+    fs::create_directories(dir + "/blocked.inp/inside");
+    const Status s = t.commit();
+    EXPECT_EQ(s.code(), ErrorCode::WriteFailed);
+    EXPECT_NE(s.message().find("blocked.inp"), std::string::npos) << s.message();
+    fs::remove_all(dir + "/blocked.inp");
+  }
+  EXPECT_EQ(folderContent(dir), before);
+  {  // all succeed: all renamed, no temporary or backup file left
+    OutputTransaction t;
+    ASSERT_TRUE(t.stage(dir + "/old.vtu", mesh).isOk());
+    ASSERT_TRUE(t.stage(dir + "/new.inp", mesh).isOk());
+    ASSERT_TRUE(t.commit().isOk());
+  }
+  const auto after = folderContent(dir);
+  EXPECT_EQ(after.size(), 2u);
+  EXPECT_TRUE(readMesh(dir + "/old.vtu").isOk());
+  EXPECT_TRUE(readMesh(dir + "/new.inp").isOk());
+}
+
+TEST(MeshIO, TwoOutputsThatAreOneFileAreRefused) {
+  const std::string dir = tmpDir() + "/distinct";
+  fs::create_directories(dir);
+  EXPECT_TRUE(checkDistinctOutputs({dir + "/a.vtu", dir + "/a.inp", "", ""}).isOk());
+  const Status s = checkDistinctOutputs({dir + "/a.vtu", dir + "/../distinct/./a.vtu"});
+  EXPECT_EQ(s.code(), ErrorCode::InvalidArgument);
+  EXPECT_NE(s.message().find("'" + dir + "/a.vtu'"), std::string::npos) << s.message();
+  EXPECT_NE(s.message().find("'" + dir + "/../distinct/./a.vtu'"), std::string::npos) << s.message();
+  fs::remove(dir + "/link.vtu");
+  std::ofstream(dir + "/target.vtu") << "x";
+  fs::create_symlink("target.vtu", dir + "/link.vtu");
+  EXPECT_EQ(checkDistinctOutputs({dir + "/link.vtu", dir + "/target.vtu"}).code(),
+            ErrorCode::InvalidArgument);
 }
 
 TEST(MeshIO, BadFilesGiveClearErrors) {

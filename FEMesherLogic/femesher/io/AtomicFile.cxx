@@ -12,39 +12,131 @@ namespace femesher {
 
 namespace fs = std::filesystem;
 
-Status writeAtomically(const std::string& path,
-                       const std::function<Status(const std::string& tmpPath)>& writer) {
-  static std::atomic<unsigned> counter{0};
-  const fs::path target(path);
-  const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-  std::error_code ec;
-  if (!fs::is_directory(dir, ec))
-    return {ErrorCode::WriteFailed, "Cannot write '" + path + "': folder '" + dir.string() +
-                                        "' does not exist. Create it or choose another path."};
-  // Keep the real extension last: some writers (ITK, VTK) choose the format from it.
-  const std::string ext = fileExtension(path);
+namespace {
+
+std::atomic<unsigned> gCounter{0};
+
+fs::path folderOf(const fs::path& target) {
+  return target.has_parent_path() ? target.parent_path() : fs::path(".");
+}
+
+/// ".<stem>.<kind><pid>_<n><ext>" next to `target`.
+fs::path siblingName(const fs::path& target, const char* kind) {
+  const std::string ext = fileExtension(target.string());
   std::string stem = target.filename().string();
   stem = stem.substr(0, stem.size() - ext.size());
-  const fs::path tmp = dir / ("." + stem + ".tmp" + std::to_string(::getpid()) + "_" +
-                              std::to_string(counter++) + ext);
+  return folderOf(target) / ("." + stem + "." + kind + std::to_string(::getpid()) + "_" +
+                             std::to_string(gCounter++) + ext);
+}
+
+/// `text` with every `from` replaced by `to` (messages name the target, not the temporary).
+std::string replaceAll(std::string text, const std::string& from, const std::string& to) {
+  if (from.empty()) return text;
+  for (size_t p = text.find(from); p != std::string::npos; p = text.find(from, p + to.size()))
+    text.replace(p, from.size(), to);
+  return text;
+}
+
+}  // namespace
+
+OutputTransaction::~OutputTransaction() {
+  std::error_code ec;
+  for (const auto& s : staged_) fs::remove(s.tmp, ec);
+}
+
+Status OutputTransaction::stage(const std::string& path, const FileWriter& writer) {
+  const fs::path target(path);
+  const fs::path dir = folderOf(target);
+  std::error_code ec;
   Status status;
-  try {
-    status = writer(tmp.string());
-  } catch (const Error& e) {
-    status = e.status();
-  } catch (const std::exception& e) {
-    status = Status(ErrorCode::WriteFailed, "Cannot write '" + path + "': " + e.what());
+  if (!fs::is_directory(dir, ec)) {
+    status = {ErrorCode::WriteFailed, "Cannot write '" + path + "': folder '" + dir.string() +
+                                          "' does not exist. Create it or choose another path."};
+  } else if (fs::is_directory(target, ec)) {
+    status = {ErrorCode::WriteFailed, "Cannot write '" + path +
+                                          "': it is a folder. Give a file name (e.g. '" +
+                                          (target / "mesh.vtu").string() + "')."};
   }
-  if (status.isOk() && !fs::exists(tmp, ec))
-    status = Status(ErrorCode::WriteFailed, "Cannot write '" + path + "': the writer produced no file");
+  const std::string tmp = siblingName(target, "tmp").string();
+  if (status.isOk()) {
+    try {
+      status = writer(tmp);
+    } catch (const Error& e) {
+      status = e.status();
+    } catch (const std::exception& e) {
+      status = Status(ErrorCode::WriteFailed, "Cannot write '" + path + "': " + e.what());
+    }
+    if (status.isOk() && !fs::is_regular_file(tmp, ec))
+      status = Status(ErrorCode::WriteFailed, "Cannot write '" + path + "': the writer produced no file.");
+  }
   if (!status.isOk()) {
     fs::remove(tmp, ec);
-    return status;
+    failed_ = true;
+    return Status(status.code(), replaceAll(status.message(), tmp, path));
   }
-  fs::rename(tmp, target, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    return {ErrorCode::WriteFailed, "Cannot write '" + path + "': " + ec.message()};
+  staged_.push_back({tmp, path});
+  return Status::ok();
+}
+
+Status OutputTransaction::commit() {
+  if (failed_)
+    return {ErrorCode::WriteFailed, "Not writing any output: another output of this run failed."};
+  std::error_code ec;
+  // Existing targets are kept under a second name (a hard link, or a copy where links are not
+  // possible) until every rename succeeded, so a failed rename can put them back.
+  std::vector<std::string> backups(staged_.size());
+  std::vector<bool> renamed(staged_.size(), false);
+  Status status;
+  for (size_t i = 0; i < staged_.size() && status.isOk(); ++i) {
+    const Staged& s = staged_[i];
+    if (fs::is_regular_file(s.path, ec)) {
+      const fs::path backup = siblingName(s.path, "bak");
+      fs::create_hard_link(s.path, backup, ec);
+      if (ec) fs::copy_file(s.path, backup, ec);
+      if (ec) {
+        status = {ErrorCode::WriteFailed, "Cannot replace '" + s.path + "': " + ec.message() +
+                                              ". Check the folder's permissions and free space."};
+        break;
+      }
+      backups[i] = backup.string();
+    }
+    fs::rename(s.tmp, s.path, ec);
+    if (ec)
+      status = {ErrorCode::WriteFailed, "Cannot write '" + s.path + "': " + ec.message() +
+                                            ". Check the path and the folder's permissions."};
+    else
+      renamed[i] = true;
+  }
+  for (size_t i = 0; i < staged_.size(); ++i) {
+    if (!status.isOk() && renamed[i]) {  // roll back: the old file, or no file
+      if (!backups[i].empty()) fs::rename(backups[i], staged_[i].path, ec);
+      else fs::remove(staged_[i].path, ec);
+    }
+    if (!backups[i].empty()) fs::remove(backups[i], ec);
+  }
+  if (status.isOk()) staged_.clear();  // nothing left for the destructor to remove
+  return status;
+}
+
+Status writeAtomically(const std::string& path, const FileWriter& writer) {
+  OutputTransaction t;
+  if (Status s = t.stage(path, writer); !s) return s;
+  return t.commit();
+}
+
+Status checkDistinctOutputs(const std::vector<std::string>& paths) {
+  std::vector<std::pair<fs::path, std::string>> seen;
+  for (const auto& p : paths) {
+    if (p.empty()) continue;
+    std::error_code ec;
+    fs::path canonical = fs::weakly_canonical(fs::absolute(p, ec), ec);
+    if (ec) canonical = fs::absolute(p, ec).lexically_normal();
+    for (const auto& [other, name] : seen)
+      if (other == canonical)
+        return {ErrorCode::InvalidArgument,
+                "Two outputs are the same file: '" + name + "' and '" + p +
+                    "'. Give each output (-o, --report, --save-parameters) its own path."};
+    seen.emplace_back(canonical, p);
   }
   return Status::ok();
 }
