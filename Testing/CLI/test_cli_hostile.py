@@ -6,6 +6,7 @@ partial, temporary or replaced file). Every input is generated here (no binary f
  - outputs of one run are one transaction: a later output failing (a file size limit, as a full
    disk does) leaves no earlier output and does not replace an existing file; two outputs with
    the same path (-o twice, --report equal to -o, also spelt differently) are refused up front;
+ - a .vtu/.vtk write failing (file size limit) is exit 11 with one plain line, not VTK's dump;
 A file size limit (RLIMIT_FSIZE, SIGXFSZ ignored) makes writes fail with EFBIG past the limit, as
 they fail with ENOSPC on a full disk. Uses only the Python standard library."""
 import gzip
@@ -162,6 +163,18 @@ r = run("mesh", ball, "-o", folder_out, *fast)
 err = one_line_error(r.stderr)
 check(r.returncode == WRITE_FAILED and "folder" in err and "Success" not in err,
       "an output that is a folder: exit 11 and says so (rc=%d: %s)" % (r.returncode, err))
+
+# ----------------------------------------------------------------------------------------------
+# 2. VTK's writers checked: a .vtu/.vtk cut by a full disk (file size limit) is exit 11, no file,
+# one line naming the file and the cause.
+for ext in (".vtu", ".vtk"):
+    folder = os.path.join(TMP, "vtk" + ext[1:])
+    os.mkdir(folder)
+    before = listing(folder)
+    r = run("mesh", ball, "-o", os.path.join(folder, "cut" + ext), *fast,
+            preexec=limits(file_size=600))
+    check_failure(ext + " disk full", r, WRITE_FAILED, "cut" + ext,
+                  [("disk is full", "size limit"), ("free", "another disk")], folder, before)
 
 if failures:
     print("\n%d failure(s)" % len(failures))

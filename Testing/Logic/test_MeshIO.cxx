@@ -29,6 +29,8 @@
 #include <string>
 #include <vector>
 
+#include <csignal>
+#include <sys/resource.h>
 
 namespace fs = std::filesystem;
 using namespace femesher;
@@ -585,6 +587,30 @@ std::map<std::string, std::string> folderContent(const std::string& dir) {
     files[e.path().filename().string()] = text.str();
   }
   return files;
+}
+
+TEST(MeshIO, EveryWriterDetectsAFullDiskAndLeavesNoFile) {
+  // A file size limit makes writes past it fail (EFBIG), as a full disk makes them fail (ENOSPC).
+  const std::string dir = tmpDir() + "/full";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const TetMesh m = twoMaterialCube();
+  struct rlimit old {};
+  ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &old), 0);
+  const auto previous = std::signal(SIGXFSZ, SIG_IGN);
+  for (const auto& ext : supportedMeshExtensions()) {
+    struct rlimit small = old;
+    small.rlim_cur = 300;
+    ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &small), 0);
+    const Status s = writeMesh(m, dir + "/cut" + ext);
+    ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &old), 0);
+    EXPECT_EQ(s.code(), ErrorCode::WriteFailed) << ext << ": " << s.message();
+    EXPECT_NE(s.message().find("'" + dir + "/cut" + ext + "'"), std::string::npos) << s.message();
+    EXPECT_EQ(s.message().find(".tmp"), std::string::npos) << s.message();
+    EXPECT_EQ(s.message().find('\n'), std::string::npos) << s.message();
+  }
+  std::signal(SIGXFSZ, previous);
+  EXPECT_TRUE(folderContent(dir).empty());
 }
 
 TEST(MeshIO, OutputTransactionWritesAllOrNothing) {

@@ -6,7 +6,12 @@
 
 #include <vtkCallbackCommand.h>
 #include <vtkCommand.h>
+#include <vtkErrorCode.h>
+#include <vtkLogger.h>
 #include <vtkNew.h>
+#include <vtkObjectFactory.h>
+#include <vtkOutputWindow.h>
+#include <vtkSmartPointer.h>
 #include <vtkUnstructuredGrid.h>
 #include <vtkUnstructuredGridReader.h>
 #include <vtkUnstructuredGridWriter.h>
@@ -36,6 +41,62 @@ class VtkMessages {
   vtkNew<vtkCallbackCommand> cb_;
 };
 
+/// Collects what VTK would print (its executive's and helper objects' errors have no observer
+/// of ours) instead of the coloured dump on the terminal.
+class CollectingOutputWindow : public vtkOutputWindow {
+ public:
+  static CollectingOutputWindow* New();
+  vtkTypeMacro(CollectingOutputWindow, vtkOutputWindow);
+  void DisplayText(const char* text) override {
+    if (text && collected.size() < 2000) collected += text;
+  }
+  std::string collected;
+};
+vtkStandardNewMacro(CollectingOutputWindow);
+
+/// While it lives, VTK's messages go to a CollectingOutputWindow (the previous window after), and
+/// vtkLogger, which VTK 9 also has print every error on stderr, prints nothing there.
+class ScopedVtkOutput {
+ public:
+  ScopedVtkOutput()
+      : previous_(vtkOutputWindow::GetInstance()),
+        stderrVerbosity_(vtkLogger::GetCurrentVerbosityCutoff()) {
+    vtkOutputWindow::SetInstance(window_);
+    vtkLogger::SetStderrVerbosity(vtkLogger::VERBOSITY_OFF);
+  }
+  ~ScopedVtkOutput() {
+    vtkLogger::SetStderrVerbosity(stderrVerbosity_);
+    vtkOutputWindow::SetInstance(previous_);
+  }
+  ScopedVtkOutput(const ScopedVtkOutput&) = delete;
+  ScopedVtkOutput& operator=(const ScopedVtkOutput&) = delete;
+  const std::string& text() const { return window_->collected; }
+
+ private:
+  vtkSmartPointer<vtkOutputWindow> previous_;
+  vtkLogger::Verbosity stderrVerbosity_;
+  vtkNew<CollectingOutputWindow> window_;
+};
+
+/// The outcome of a VTK writer's Write(): OK, or WriteFailed naming `path` and the cause from
+/// the writer's error code (else VTK's first message), on one line.
+Status vtkWriteStatus(vtkAlgorithm* writer, int written, const std::string& path,
+                      const std::string& messages) {
+  const unsigned long code = writer->GetErrorCode();
+  if (written == 1 && code == vtkErrorCode::NoError && messages.empty()) return Status::ok();
+  std::string cause;
+  if (code == vtkErrorCode::OutOfDiskSpaceError)
+    cause = "the disk is full (or a file size limit was reached). Free some space or write to "
+            "another disk.";
+  else if (code == vtkErrorCode::CannotOpenFileError)
+    cause = "the file cannot be created. Check that the folder is writable.";
+  else
+    cause = (messages.empty() ? std::string("VTK's writer failed")
+                              : "VTK: " + oneLine(messages.substr(0, 200))) +
+            ". Check the free space and that the folder is writable.";
+  return {ErrorCode::WriteFailed, "Cannot write '" + path + "': " + cause};
+}
+
 }  // namespace
 
 Status writeVtu(const TetMesh& m, const std::string& path, const ExportOptions& o) {
@@ -50,8 +111,9 @@ Status writeVtu(const TetMesh& m, const std::string& path, const ExportOptions& 
     w->SetInputData(ug);
     w->SetDataModeToAppended();
     w->SetCompressorTypeToZLib();
-    if (w->Write() != 1 || !messages.text.empty()) return ioError(path);
-    return Status::ok();
+    ScopedVtkOutput output;
+    const int written = w->Write();
+    return vtkWriteStatus(w, written, path, messages.text + output.text());
   });
 }
 
@@ -69,8 +131,9 @@ Status writeLegacyVtk(const TetMesh& m, const std::string& path, const ExportOpt
     w->SetFileVersion(42);
     w->SetFileTypeToBinary();
     w->SetHeader("3D Slicer output. SPACE=LPS");
-    if (w->Write() != 1 || !messages.text.empty()) return ioError(path);
-    return Status::ok();
+    ScopedVtkOutput output;
+    const int written = w->Write();
+    return vtkWriteStatus(w, written, path, messages.text + output.text());
   });
 }
 
