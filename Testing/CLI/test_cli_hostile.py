@@ -7,6 +7,8 @@ partial, temporary or replaced file). Every input is generated here (no binary f
    disk does) leaves no earlier output and does not replace an existing file; two outputs with
    the same path (-o twice, --report equal to -o, also spelt differently) are refused up front;
  - a .vtu/.vtk write failing (file size limit) is exit 11 with one plain line, not VTK's dump;
+ - headers claiming more voxels than the file holds or than the machine's memory;
+ - truncated and corrupt compressed data (.nii.gz cut short, NRRD gzip with a flipped byte).
 A file size limit (RLIMIT_FSIZE, SIGXFSZ ignored) makes writes fail with EFBIG past the limit, as
 they fail with ENOSPC on a full disk. Uses only the Python standard library."""
 import gzip
@@ -14,9 +16,11 @@ import os
 import resource
 import shutil
 import signal
+import struct
 import subprocess
 import sys
 import tempfile
+import zlib
 
 CLI = os.environ["FEMESHER_CLI"]
 TMP = tempfile.mkdtemp(prefix="cli_hostile_", dir=os.environ.get("FEMESHER_TMP"))
@@ -175,6 +179,145 @@ for ext in (".vtu", ".vtk"):
             preexec=limits(file_size=600))
     check_failure(ext + " disk full", r, WRITE_FAILED, "cut" + ext,
                   [("disk is full", "size limit"), ("free", "another disk")], folder, before)
+
+# ----------------------------------------------------------------------------------------------
+# 3. Claimed size against the data present and the memory available, before allocating.
+inputs = os.path.join(TMP, "inputs")
+os.mkdir(inputs)
+quiet = os.path.join(TMP, "quiet")  # the output folder of the mesh runs that must fail
+os.mkdir(quiet)
+before = listing(quiet)
+
+
+def mesh_and_info(name, path, code, must_name, words):
+    for cmd in ("mesh", "info"):
+        extra = ["-o", os.path.join(quiet, "never.vtu")] + fast if cmd == "mesh" else []
+        r = run(cmd, path, *extra)
+        check_failure("%s (%s)" % (name, cmd), r, code, must_name, words, quiet, before)
+
+
+def write_nrrd(path, sizes, encoding, body, pad_to=0):
+    header = ("NRRD0004\ntype: uint8\ndimension: %d\nsizes: %s\nencoding: %s\n\n"
+              % (len(sizes), " ".join(str(s) for s in sizes), encoding)).encode()
+    data = header + body
+    if pad_to:
+        data += b"\0" * (pad_to - len(data))
+    with open(path, "wb") as f:
+        f.write(data)
+    return len(data) - len(header)
+
+
+# A 240-byte NRRD claiming 100000 x 100000 x 2 voxels: the two byte counts and a remedy, at once.
+bomb = os.path.join(inputs, "bomb.nrrd")
+present = write_nrrd(bomb, (100000, 100000, 2), "raw", b"", pad_to=240)
+check(os.path.getsize(bomb) == 240, "the raw bomb is 240 bytes")
+mesh_and_info("raw NRRD claiming 2e10 voxels", bomb, CORRUPT, "bomb.nrrd",
+              [("20000000000",), (" %d bytes" % present,), ("re-export",)])
+# The same claim with gzip data: deflate cannot expand 1:1032 and more, so also at once.
+gzbomb = os.path.join(inputs, "gzbomb.nrrd")
+present = write_nrrd(gzbomb, (100000, 100000, 2), "gzip", gzip.compress(b"\0" * 100000))
+mesh_and_info("gzip NRRD claiming 2e10 voxels", gzbomb, CORRUPT, "gzbomb.nrrd",
+              [("20000000000",), ("%d compressed bytes" % present,), ("re-export",)])
+# A detached header whose data file is missing.
+nhdr = os.path.join(inputs, "lost.nhdr")
+with open(nhdr, "w") as f:
+    f.write("NRRD0004\ntype: uint8\ndimension: 3\nsizes: 4 4 4\nencoding: raw\n"
+            "data file: lost.raw\n")
+mesh_and_info("nhdr without its data file", nhdr, CORRUPT, "lost.raw",
+              [("missing",), ("keep the .nhdr and its data file together",)])
+
+# A file whose data is all there but needs more memory than the process may use: an address space
+# limit (RLIMIT_AS) below what reading needs. 400^3 uint32 values (256 MB, a 16 KB pattern of
+# labels 0..3 repeated so that it compresses about 1:70 as real data does): reading needs
+# 256 MB + 4 bytes per value = 512 MB; the limit is 400 MB, which a small map reads within.
+AS_LIMIT = 400 * 1000 * 1000
+small = os.path.join(inputs, "small.nrrd")
+nrrd_ball(small, n=8)
+r = run("info", small, preexec=limits(address_space=AS_LIMIT))
+check(r.returncode == 0, "a small map reads within the address space limit (rc=%d, %s)"
+      % (r.returncode, r.stderr[-300:]))
+n = 400
+big = os.path.join(inputs, "big.nrrd")
+pattern = bytes((i * 7919 >> 5) % 4 for i in range(16384)) * 4  # 64 KB = 16384 uint32 values
+comp = zlib.compressobj(1, zlib.DEFLATED, 16 + 15)
+with open(big, "wb") as f:
+    f.write(("NRRD0004\ntype: uint32\ndimension: 3\nsizes: %d %d %d\nendian: little\n"
+             "encoding: gzip\n\n" % (n, n, n)).encode())
+    total = n * n * n * 4
+    for _ in range(total // len(pattern)):
+        f.write(comp.compress(pattern))
+    f.write(comp.compress(pattern[:total % len(pattern)]) + comp.flush())
+for cmd in ("mesh", "info"):
+    extra = ["-o", os.path.join(quiet, "never.vtu")] + fast if cmd == "mesh" else []
+    r = run(cmd, big, *extra, preexec=limits(address_space=AS_LIMIT))
+    check_failure("400^3 uint32 over the memory limit (%s)" % cmd, r, UNREADABLE, "big.nrrd",
+                  [("64000000 voxels",), ("%d bytes as stored" % total,),
+                   ("needs at least %d bytes" % (total * 2),), ("%d bytes" % AS_LIMIT,),
+                   ("crop", "resample")], quiet, before)
+
+# ----------------------------------------------------------------------------------------------
+# 4. Truncated and corrupt compressed data: exit 5, never a mesh.
+
+
+def nifti(n=40):
+    """NIfTI-1 (.nii) bytes: uint8, n^3 voxels of 1 mm, a ball of label 1."""
+    h = bytearray(352)
+    struct.pack_into("<i", h, 0, 348)
+    struct.pack_into("<8h", h, 40, 3, n, n, n, 1, 1, 1, 1)
+    struct.pack_into("<hh", h, 70, 2, 8)  # datatype uint8, bitpix 8
+    struct.pack_into("<8f", h, 76, 1, 1, 1, 1, 0, 0, 0, 0)
+    struct.pack_into("<f", h, 108, 352.0)  # vox_offset
+    struct.pack_into("<hh", h, 252, 0, 1)  # qform 0, sform 1 (scanner)
+    struct.pack_into("<4f", h, 280, 1, 0, 0, 0)
+    struct.pack_into("<4f", h, 296, 0, 1, 0, 0)
+    struct.pack_into("<4f", h, 312, 0, 0, 1, 0)
+    h[344:348] = b"n+1\0"
+    c = (n - 1) / 2.0
+    data = bytes(1 if (x - c) ** 2 + (y - c) ** 2 + (z - c) ** 2 < (n / 3.0) ** 2 else 0
+                 for z in range(n) for y in range(n) for x in range(n))
+    return bytes(h) + data
+
+
+good_nii = gzip.compress(nifti(), mtime=0)
+path = os.path.join(inputs, "good.nii.gz")
+with open(path, "wb") as f:
+    f.write(good_nii)
+r = run("info", path)
+check(r.returncode == 0, "the generated .nii.gz is read (rc=%d, %s)" % (r.returncode, r.stderr[-300:]))
+
+cut = os.path.join(inputs, "cut.nii.gz")
+with open(cut, "wb") as f:
+    f.write(good_nii[:len(good_nii) // 5])
+mesh_and_info(".nii.gz cut to a fifth", cut, CORRUPT, "cut.nii.gz",
+              [("cut off", "truncated"), ("re-export",)])
+crc = os.path.join(inputs, "crc.nii.gz")
+with open(crc, "wb") as f:
+    f.write(good_nii[:-8] + bytes([good_nii[-8] ^ 0x01]) + good_nii[-7:])
+mesh_and_info(".nii.gz with a flipped CRC byte", crc, CORRUPT, "crc.nii.gz",
+              [("damaged",), ("re-export",)])
+
+gz = os.path.join(inputs, "gz.nrrd")
+header_len = nrrd_ball(gz, n=14, encoding="gzip")
+r = run("info", gz)
+check(r.returncode == 0, "the generated gzip NRRD is read (rc=%d, %s)" % (r.returncode, r.stderr[-300:]))
+with open(gz, "rb") as f:
+    good = f.read()
+body = len(good) - header_len
+# Flipped bytes: in the gzip trailer (CRC-32, length) and across the deflate data (after the
+# 10-byte gzip header). Each must be exit 5; none may be meshed.
+positions = [len(good) - 8, len(good) - 5, len(good) - 2] + \
+            [header_len + 10 + k * (body - 18) // 6 for k in range(6)]
+for i, pos in enumerate(positions):
+    flipped = os.path.join(inputs, "flip%d.nrrd" % i)
+    with open(flipped, "wb") as f:
+        f.write(good[:pos] + bytes([good[pos] ^ 0x10]) + good[pos + 1:])
+    mesh_and_info("gzip NRRD, byte %d of %d flipped" % (pos, len(good)), flipped, CORRUPT,
+                  "flip%d.nrrd" % i, [("damaged",), ("re-export",)])
+cutnrrd = os.path.join(inputs, "cut.nrrd")
+with open(cutnrrd, "wb") as f:
+    f.write(good[:header_len + body // 2])
+mesh_and_info("gzip NRRD cut in half", cutnrrd, CORRUPT, "cut.nrrd",
+              [("cut off", "truncated"), ("re-export",)])
 
 if failures:
     print("\n%d failure(s)" % len(failures))

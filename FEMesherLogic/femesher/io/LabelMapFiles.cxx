@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -13,6 +14,9 @@
 #include <map>
 #include <sstream>
 #include <vector>
+
+#include <sys/resource.h>
+#include <unistd.h>
 
 namespace femesher::labelio {
 
@@ -36,6 +40,67 @@ std::map<std::string, std::string> readMetaHeader(const std::string& path, uintm
     if (key == "ElementDataFile") break;
   }
   return h;
+}
+
+/// Deflate expands at most 1032:1: compressed data of `bytes` cannot hold more than this.
+constexpr uintmax_t kMaxDeflateRatio = 1032;
+
+std::string gigabytes(uintmax_t bytes) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.1f GB", double(bytes) / 1e9);
+  return text;
+}
+
+/// Bytes of one value of a NRRD `type` (every spelling of the NRRD format; 0: unknown).
+uintmax_t nrrdTypeBytes(const std::string& type) {
+  static const std::map<std::string, uintmax_t> bytes = {
+      {"signed char", 1}, {"int8", 1}, {"int8_t", 1}, {"uchar", 1}, {"unsigned char", 1},
+      {"uint8", 1}, {"uint8_t", 1}, {"short", 2}, {"short int", 2}, {"signed short", 2},
+      {"signed short int", 2}, {"int16", 2}, {"int16_t", 2}, {"ushort", 2},
+      {"unsigned short", 2}, {"unsigned short int", 2}, {"uint16", 2}, {"uint16_t", 2},
+      {"int", 4}, {"signed int", 4}, {"int32", 4}, {"int32_t", 4}, {"uint", 4},
+      {"unsigned int", 4}, {"uint32", 4}, {"uint32_t", 4}, {"longlong", 8}, {"long long", 8},
+      {"long long int", 8}, {"signed long long", 8}, {"signed long long int", 8}, {"int64", 8},
+      {"int64_t", 8}, {"ulonglong", 8}, {"unsigned long long", 8}, {"unsigned long long int", 8},
+      {"uint64", 8}, {"uint64_t", 8}, {"float", 4}, {"double", 8}};
+  const auto it = bytes.find(type);
+  return it == bytes.end() ? 0 : it->second;
+}
+
+/// Inflates the gzip (or zlib) data of `in` from its current position to the end: the bytes it
+/// decodes to, or an error text (zlib's: cut off, damaged, CRC-32 or length check failed).
+std::string inflateAll(std::istream& in, uintmax_t& decoded) {
+  z_stream z{};
+  if (inflateInit2(&z, 15 + 32) != Z_OK) return "zlib could not start";
+  std::vector<unsigned char> input(1 << 16), output(1 << 18);
+  int rc = Z_OK;
+  decoded = 0;
+  bool any = false;
+  while (true) {
+    if (z.avail_in == 0) {
+      in.read(reinterpret_cast<char*>(input.data()), std::streamsize(input.size()));
+      z.avail_in = unsigned(in.gcount());
+      z.next_in = input.data();
+      if (z.avail_in == 0) break;
+    }
+    if (rc == Z_STREAM_END) {  // another gzip member follows (concatenated streams)
+      if (inflateReset(&z) != Z_OK) break;
+    }
+    z.avail_out = unsigned(output.size());
+    z.next_out = output.data();
+    rc = inflate(&z, Z_NO_FLUSH);
+    decoded += output.size() - z.avail_out;
+    any = true;
+    if (rc != Z_OK && rc != Z_STREAM_END && rc != Z_BUF_ERROR) break;
+  }
+  std::string error;
+  if (rc != Z_OK && rc != Z_STREAM_END)
+    error = std::string("its compressed data is damaged (zlib: ") +
+            (z.msg ? z.msg : "invalid data") + ")";
+  else if (rc != Z_STREAM_END || !any)
+    error = "its compressed data is cut off (the gzip stream ends before its end marker)";
+  inflateEnd(&z);
+  return error;
 }
 
 }  // namespace
@@ -173,9 +238,16 @@ Status checkNifti(const std::string& path) {
     return Status::ok();  // not NIfTI: ITK decides
   }
   const uintmax_t expected = offset + voxels * bitpix / 8;
+  std::error_code ec;
+  const uintmax_t fileBytes = fs::file_size(path, ec);
+  if (!ec && expected > fileBytes * kMaxDeflateRatio + 4096)
+    return corrupt(path, "its header describes " + std::to_string(expected) +
+                             " bytes but the file holds only " + std::to_string(fileBytes) +
+                             ", too few even compressed (truncated, or a header that lies)");
+  // Read to the end, so that zlib checks the gzip trailer (CRC-32 and length) too.
   uintmax_t available = uintmax_t(got);
   std::vector<char> chunk(1 << 18);
-  while (available < expected) {
+  while (true) {
     const int n = gzread(f, chunk.data(), unsigned(chunk.size()));
     if (n <= 0) break;
     available += uintmax_t(n);
@@ -183,11 +255,129 @@ Status checkNifti(const std::string& path) {
   int err = Z_OK;
   const char* message = gzerror(f, &err);
   if (err != Z_OK && err != Z_STREAM_END)
-    return corrupt(path, std::string("its compressed data is cut off or damaged (zlib: ") + message + ")");
+    return corrupt(path, std::string("its compressed data is cut off or damaged (zlib: ") + message +
+                             "); a reader would mesh wrong or missing voxels");
   if (available < expected)
     return corrupt(path, "its header describes " + std::to_string(expected) + " bytes but the file holds only " +
                              std::to_string(available) + " (truncated); a reader would fill the rest with 0");
   return Status::ok();
+}
+
+Status checkNrrd(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  if (!std::getline(in, line) || line.rfind("NRRD", 0) != 0) return Status::ok();
+  std::map<std::string, std::string> h;
+  bool attached = false;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty()) {
+      attached = true;  // the data follows the blank line
+      break;
+    }
+    if (line[0] == '#' || line.find(":=") != std::string::npos) continue;
+    const auto colon = line.find(": ");
+    if (colon == std::string::npos) continue;
+    std::string key = line.substr(0, colon);
+    key.erase(std::remove(key.begin(), key.end(), ' '), key.end());  // "data file" = "datafile"
+    h[key] = trim(line.substr(colon + 2));
+  }
+  const uintmax_t typeBytes = nrrdTypeBytes(h["type"]);
+  if (typeBytes == 0 || h["sizes"].empty()) return Status::ok();
+  std::istringstream sizes(h["sizes"]);
+  uintmax_t claimed = typeBytes, d = 0;
+  std::string sizesText;
+  while (sizes >> d) {
+    if (d != 0 && claimed > UINTMAX_MAX / d) return Status::ok();  // ITK refuses such sizes
+    claimed *= d;
+    sizesText += (sizesText.empty() ? "" : " x ") + std::to_string(d);
+  }
+  const std::string encoding = h["encoding"];
+  const bool gz = encoding == "gzip" || encoding == "gz";
+  if (encoding != "raw" && !gz) return Status::ok();
+  // Where the data is: after the header, or in one data file (lists and patterns: ITK's part).
+  std::string dataName = "the data after its header";
+  const std::string dataFile = h.count("datafile") ? h["datafile"] : h["data_file"];
+  if (!dataFile.empty()) {
+    if (dataFile.rfind("LIST", 0) == 0 || dataFile.find(' ') != std::string::npos) return Status::ok();
+    fs::path p(dataFile);
+    if (p.is_relative()) p = fs::path(path).parent_path() / p;
+    in = std::ifstream(p, std::ios::binary);
+    if (!in)
+      return {ErrorCode::CorruptFile,
+              quoted(path) + " refers to the data file '" + p.string() +
+                  "', which is missing or unreadable. Keep the .nhdr and its data file together in "
+                  "one folder (or convert to a single .nrrd file)."};
+    dataName = "'" + p.filename().string() + "'";
+  } else if (!attached) {
+    return corrupt(path, "its header ends without data (no blank line, no data file)");
+  }
+  const long lineSkip = std::atol((h.count("lineskip") ? h["lineskip"] : h["line_skip"]).c_str());
+  for (long i = 0; i < lineSkip && std::getline(in, line); ++i) {}
+  const long byteSkip = std::atol((h.count("byteskip") ? h["byteskip"] : h["byte_skip"]).c_str());
+  const std::streamoff start = in.tellg();
+  in.seekg(0, std::ios::end);
+  const uintmax_t present = start < 0 ? 0 : uintmax_t(in.tellg() - start);
+  in.seekg(start);
+  const std::string claim = "its header describes " + sizesText + " values of " +
+                            std::to_string(typeBytes) + " byte(s), " + std::to_string(claimed) +
+                            " bytes of voxels, but " + dataName + " holds only ";
+  if (!gz) {
+    const uintmax_t skip = byteSkip > 0 ? uintmax_t(byteSkip) : 0;
+    if (byteSkip >= 0 && present < claimed + skip)
+      return corrupt(path, claim + std::to_string(present > skip ? present - skip : 0) +
+                               " bytes (truncated, or a header that lies)");
+    return Status::ok();
+  }
+  if (claimed > present * kMaxDeflateRatio + 4096)
+    return corrupt(path, claim + std::to_string(present) +
+                             " compressed bytes, which cannot decode to that many (truncated, or a "
+                             "header that lies)");
+  uintmax_t decoded = 0;
+  if (std::string error = inflateAll(in, decoded); !error.empty())
+    return corrupt(path, error + "; a reader would mesh wrong or missing voxels");
+  const uintmax_t skip = byteSkip > 0 ? uintmax_t(byteSkip) : 0;
+  if (decoded < claimed + skip)
+    return corrupt(path, claim + std::to_string(decoded) + " bytes once decompressed (truncated)");
+  return Status::ok();
+}
+
+uintmax_t availableMemory() {
+  uintmax_t available = 0;
+  std::ifstream meminfo("/proc/meminfo");
+  std::string key;
+  uintmax_t kb = 0;
+  std::string unit;
+  while (meminfo >> key >> kb >> unit)
+    if (key == "MemAvailable:") {
+      available = kb * 1024;
+      break;
+    }
+  if (available == 0) {
+    const long pages = ::sysconf(_SC_AVPHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
+    if (pages > 0 && page > 0) available = uintmax_t(pages) * uintmax_t(page);
+  }
+  struct rlimit limit {};
+  if (::getrlimit(RLIMIT_AS, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY) {
+    const uintmax_t cap = uintmax_t(limit.rlim_cur);
+    available = available == 0 ? cap : std::min(available, cap);
+  }
+  return available;
+}
+
+Status checkMemory(const std::string& path, const int dims[3], uintmax_t voxels,
+                   uintmax_t storedBytes, uintmax_t bytesNeeded) {
+  const uintmax_t available = availableMemory();
+  if (available == 0 || bytesNeeded <= available) return Status::ok();
+  return {ErrorCode::UnreadableFile,
+          quoted(path) + " is too large for the memory available: " + std::to_string(dims[0]) +
+              " x " + std::to_string(dims[1]) + " x " + std::to_string(dims[2]) + " = " +
+              std::to_string(voxels) + " voxels (" + std::to_string(storedBytes) +
+              " bytes as stored); reading it needs at least " + std::to_string(bytesNeeded) +
+              " bytes (" + gigabytes(bytesNeeded) + ") but only " + std::to_string(available) +
+              " bytes (" + gigabytes(available) +
+              ") are available. Crop the label map to the labelled region or resample it to "
+              "larger voxels (e.g. 3D Slicer's Crop Volume), or run on a machine with more memory."};
 }
 
 }  // namespace femesher::labelio

@@ -7,6 +7,7 @@
 
 #include <femesher/Status.h>
 
+#include <cstdint>
 #include <string>
 
 namespace itk {
@@ -36,5 +37,23 @@ Status checkMetaImage(const std::string& path);
 /// A NIfTI file (.nii, .nii.gz) whose data is shorter than its header says, or whose gzip stream
 /// is cut or damaged: CorruptFile. OK for complete files and for what is not NIfTI.
 Status checkNifti(const std::string& path);
+
+/// A NRRD (.nrrd, .nhdr, .seg.nrrd) whose data is not all there, checked from its header before
+/// ITK allocates anything: raw data shorter than `sizes` x `type` (CorruptFile naming both byte
+/// counts); gzip data that cannot hold that many bytes (deflate expands at most 1032:1, so a
+/// memory bomb fails at once), that is cut off, damaged (zlib's CRC-32 and length checks of the
+/// gzip trailer) or decodes to fewer bytes than the header says. OK for complete files and for
+/// what it cannot check (ascii/hex/bzip2 data, multi-file data: ITK reports those itself).
+Status checkNrrd(const std::string& path);
+
+/// Whether this process can hold `bytesNeeded` bytes (the voxels as stored plus their int32
+/// labels: what reading the label map needs at least): compared with the memory available
+/// (MemAvailable of /proc/meminfo, else sysconf's free pages; lower when the address-space limit
+/// RLIMIT_AS is lower). UnreadableFile naming both amounts, the dimensions and what to do.
+Status checkMemory(const std::string& path, const int dims[3], uintmax_t voxels,
+                   uintmax_t storedBytes, uintmax_t bytesNeeded);
+
+/// Bytes this process can still allocate (see checkMemory); 0 when unknown.
+uintmax_t availableMemory();
 
 }  // namespace femesher::labelio

@@ -181,6 +181,8 @@ Status checkInputFile(const std::string& path) {
     if (Status s = labelio::checkMetaImage(path); !s) return s;
   if (ext == ".nii" || ext == ".nii.gz")
     if (Status s = labelio::checkNifti(path); !s) return s;
+  if (ext == ".nrrd" || ext == ".nhdr" || ext == ".seg.nrrd")
+    if (Status s = labelio::checkNrrd(path); !s) return s;
   return Status::ok();
 }
 
@@ -331,6 +333,13 @@ Result<LabelVolume> readLabelMap(const std::string& path) {
   v.sourcePath = path;
   if (Status s = validateLabelGeometry(v, path); !s) return s;
   const size_t n = v.voxelCount();
+  // Before allocating: reading holds the voxels as stored plus one int32 per value (and one per
+  // voxel to merge .seg.nrrd layers); refuse at once what this machine cannot hold.
+  const uintmax_t stored = uintmax_t(io->GetImageSizeInBytes());
+  if (Status s = labelio::checkMemory(path, v.dims.data(), n, stored,
+                                      stored + 4 * uintmax_t(n) * (layers + (layers > 1 ? 1 : 0)));
+      !s)
+    return s;
   auto values = readValues(*io, n * layers, path);
   if (!values) return values.status();
 
