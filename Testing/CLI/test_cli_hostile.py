@@ -8,9 +8,11 @@ partial, temporary or replaced file). Every input is generated here (no binary f
    the same path (-o twice, --report equal to -o, also spelt differently) are refused up front;
  - a .vtu/.vtk write failing (file size limit) is exit 11 with one plain line, not VTK's dump;
  - headers claiming more voxels than the file holds or than the machine's memory;
- - truncated and corrupt compressed data (.nii.gz cut short, NRRD gzip with a flipped byte).
+ - truncated and corrupt compressed data (.nii.gz cut short, NRRD gzip with a flipped byte);
+   bzip2 NRRD data, which the reader cannot decode, is said to be that, not damaged.
 A file size limit (RLIMIT_FSIZE, SIGXFSZ ignored) makes writes fail with EFBIG past the limit, as
 they fail with ENOSPC on a full disk. Uses only the Python standard library."""
+import bz2
 import gzip
 import os
 import resource
@@ -318,6 +320,14 @@ with open(cutnrrd, "wb") as f:
     f.write(good[:header_len + body // 2])
 mesh_and_info("gzip NRRD cut in half", cutnrrd, CORRUPT, "cut.nrrd",
               [("cut off", "truncated"), ("re-export",)])
+
+# bzip2 NRRD data: not damaged, but ITK's NRRD reader cannot decode it; say so (exit 4).
+bz = os.path.join(inputs, "bz.nrrd")
+with open(bz, "wb") as f:
+    f.write(b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 4 4 4\nencoding: bzip2\n\n" +
+            bz2.compress(bytes([1]) * 64))
+mesh_and_info("bzip2 NRRD", bz, UNREADABLE, "bz.nrrd",
+              [("bzip2",), ("not damaged",), ("gzip or raw",)])
 
 if failures:
     print("\n%d failure(s)" % len(failures))

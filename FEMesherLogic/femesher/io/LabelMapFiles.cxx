@@ -293,6 +293,11 @@ Status checkNrrd(const std::string& path) {
     sizesText += (sizesText.empty() ? "" : " x ") + std::to_string(d);
   }
   const std::string encoding = h["encoding"];
+  if (encoding == "bzip2" || encoding == "bz2")  // NrrdIO (ITK's NRRD reader) has no bzip2
+    return {ErrorCode::UnreadableFile,
+            quoted(path) + " holds bzip2-compressed NRRD data, which FEMesher's NRRD reader (ITK's "
+                           "NrrdIO) cannot decode; the file is not damaged. Save it again with gzip "
+                           "or raw encoding (e.g. `unu save -e gzip`, or 3D Slicer's .nrrd)."};
   const bool gz = encoding == "gzip" || encoding == "gz";
   if (encoding != "raw" && !gz) return Status::ok();
   // Where the data is: after the header, or in one data file (lists and patterns: ITK's part).
