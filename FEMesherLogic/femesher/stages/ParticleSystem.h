@@ -21,6 +21,9 @@
 ///   only where there is room), a particle with far more than the ideal energy is removed unless a
 ///   neighbour already is, and of two particles closer than `minSpacingFactor` x h the one with
 ///   the higher id is removed.
+/// - At the end, a surface particle closer than a quarter of h to a junction particle or to an
+///   earlier particle of any interface is removed: the rules above see one interface at a time,
+///   and where interfaces meet two particles could otherwise end a hair apart.
 /// - Convergence (reported): the 95th percentile of the moves is below `tolerance` x h for 3
 ///   iterations in a row and the population did not change in the last population step, or
 ///   `maxIterations` is reached. (The largest move is reported too: a few particles at the rim of
