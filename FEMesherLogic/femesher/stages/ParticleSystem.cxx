@@ -548,16 +548,23 @@ class PopulationControl {
   std::vector<Particle> added_;
 };
 
+/// The particles' canonical positions and h (sampleParticles) and a grid over them with cells of
+/// twice the median h.
+void particleGrid(const std::vector<Particle>& P, const Surface& S, const SizingFunction& sizing,
+                  std::vector<Vec3>& pos, std::vector<double>& hs, Grid& grid) {
+  const double hMax = sampleParticles(P, S, sizing, pos, hs, nullptr);
+  grid.cell = 2 * median(hs, hMax);
+  grid.build(pos);
+}
+
 /// Result figure: mean distance to the nearest particle on the same interface, relative to h.
 double meanSpacingRatio(const std::vector<Particle>& P, const Surface& S,
                         const SizingFunction& sizing, size_t nFixed) {
   const size_t n = P.size();
   std::vector<Vec3> pos;
   std::vector<double> hs;
-  const double hMax = sampleParticles(P, S, sizing, pos, hs, nullptr);
   Grid grid;
-  grid.cell = 2 * median(hs, hMax);
-  grid.build(pos);
+  particleGrid(P, S, sizing, pos, hs, grid);
   double sum = 0;
   size_t count = 0;
   for (size_t i = nFixed; i < n; ++i) {
@@ -607,10 +614,8 @@ size_t removeCrossInterfaceDuplicates(std::vector<Particle>& P, const Surface& S
                                       const SizingFunction& sizing, size_t nFixed, double share) {
   std::vector<Vec3> pos;
   std::vector<double> hs;
-  const double hMax = sampleParticles(P, S, sizing, pos, hs, nullptr);
   Grid grid;
-  grid.cell = 2 * median(hs, hMax);
-  grid.build(pos);
+  particleGrid(P, S, sizing, pos, hs, grid);
   std::vector<char> drop(P.size(), 0);
   size_t dropped = 0;
   for (size_t i = nFixed; i < P.size(); ++i) {
