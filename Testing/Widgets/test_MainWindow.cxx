@@ -20,19 +20,15 @@
 #include <QVTKOpenGLNativeWidget.h>
 #include <QtTest>
 
+#include "PanelWait.h"
+
 class MainWindowTest : public QObject {
   Q_OBJECT
  private:
   std::unique_ptr<qFEMesherMainWindow> window_;
 
   qFEMesherPanelWidget* panel() const { return window_->panel(); }
-  bool waitForEnd(int timeoutMs) {
-    QElapsedTimer t;
-    t.start();
-    while (panel()->isRunning() && t.elapsed() < timeoutMs) QTest::qWait(20);
-    QTest::qWait(100);
-    return !panel()->isRunning();
-  }
+  bool waitForEnd(int timeoutMs) { return waitForPanelEnd(*panel(), timeoutMs, 100); }
   static QString shotsDir() {
     QString dir = qEnvironmentVariable("FEMESHER_SHOTS_DIR");
     if (dir.isEmpty()) dir = QStringLiteral(FEMESHER_TEST_TMP_DIR "/mainwindow");

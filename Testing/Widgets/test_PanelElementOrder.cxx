@@ -23,6 +23,8 @@
 #include <QScrollArea>
 #include <QtTest>
 
+#include "PanelWait.h"
+
 #include <cmath>
 
 using namespace femesher;
@@ -63,13 +65,7 @@ class PanelElementOrderTest : public QObject {
     auto* label = panel_->findChild<QLabel*>(QStringLiteral("message"));
     return label ? label->text() : QString();
   }
-  bool waitForEnd(int timeoutMs) {
-    QElapsedTimer t;
-    t.start();
-    while (panel_->isRunning() && t.elapsed() < timeoutMs) QTest::qWait(20);
-    QTest::qWait(50);
-    return !panel_->isRunning();
-  }
+  bool waitForEnd(int timeoutMs) { return waitForPanelEnd(*panel_, timeoutMs); }
 
  private slots:
   void initTestCase() {

@@ -30,6 +30,8 @@
 #include <QTableWidget>
 #include <QtTest>
 
+#include "PanelWait.h"
+
 #include <set>
 
 using namespace femesher;
@@ -53,13 +55,7 @@ class PanelWidgetTest : public QObject {
   QDoubleSpinBox* spin(const char* key) const {
     return qobject_cast<QDoubleSpinBox*>(panel_->parameterEditor(QString::fromLatin1(key)));
   }
-  bool waitForEnd(int timeoutMs) {
-    QElapsedTimer t;
-    t.start();
-    while (panel_->isRunning() && t.elapsed() < timeoutMs) QTest::qWait(20);
-    QTest::qWait(50);
-    return !panel_->isRunning();
-  }
+  bool waitForEnd(int timeoutMs) { return waitForPanelEnd(*panel_, timeoutMs); }
 
  private slots:
   void initTestCase() {
