@@ -11,7 +11,8 @@ partial, temporary or replaced file). Every input is generated here (no binary f
  - truncated and corrupt compressed data (.nii.gz cut short, NRRD gzip with a flipped byte);
    bzip2 NRRD data, which the reader cannot decode, is said to be that, not damaged;
  - absurd geometry (NaN, infinite, zero or negative spacing, singular directions, an origin that is
-   not finite or too far away) in NRRD, NIfTI and MetaImage headers: exit 5 naming the field.
+   not finite or too far away) in NRRD, NIfTI and MetaImage headers: exit 5 naming the field;
+ - two segments with the same LabelValue in one layer of a .seg.nrrd: exit 9 naming both.
 A file size limit (RLIMIT_FSIZE, SIGXFSZ ignored) makes writes fail with EFBIG past the limit, as
 they fail with ENOSPC on a full disk. Uses only the Python standard library."""
 import bz2
@@ -444,6 +445,57 @@ for i, (name, line, words) in enumerate(mha_cases):
                 bytes(1 if 1 < x < 6 else 0 for z in range(n) for y in range(n) for x in range(n)))
     mesh_and_info("MetaImage " + name, path, CORRUPT, "geo%d.mha" % i,
                   [(w.lower(),) for w in words] + GEO_REMEDY)
+
+# ----------------------------------------------------------------------------------------------
+# 6. Two segments with the same LabelValue in one layer of a .seg.nrrd: exit 9 (every voxel of
+# that value would belong to both), naming both segments, the value and a remedy. The same
+# LabelValue in two layers is how 3D Slicer stores overlapping segments and stays accepted.
+def seg_nrrd(path, layers, segments, n=8):
+    """A .seg.nrrd: `layers` functions (i, j, k) -> value (one layer: 3-D, else a "list" axis
+    first); `segments` are (name, LabelValue, layer)."""
+    vals = bytes(layer(i, j, k) for k in range(n) for j in range(n) for i in range(n)
+                 for layer in layers)
+    if len(layers) == 1:
+        header = ("NRRD0004\ntype: unsigned char\ndimension: 3\nsizes: %d %d %d\n"
+                  "kinds: domain domain domain\nspace: left-posterior-superior\n"
+                  "space directions: (1,0,0) (0,1,0) (0,0,1)\n" % (n, n, n))
+    else:
+        header = ("NRRD0004\ntype: unsigned char\ndimension: 4\nsizes: %d %d %d %d\n"
+                  "kinds: list domain domain domain\nspace: left-posterior-superior\n"
+                  "space directions: none (1,0,0) (0,1,0) (0,0,1)\n" % (len(layers), n, n, n))
+    header += "space origin: (0,0,0)\nencoding: raw\nendian: little\n"
+    for idx, (name, value, layer) in enumerate(segments):
+        header += ("Segment%d_ID:=Segment_%d\nSegment%d_Name:=%s\nSegment%d_Color:=0.1 0.2 0.3\n"
+                   "Segment%d_LabelValue:=%d\nSegment%d_Layer:=%d\n"
+                   % (idx, idx, idx, name, idx, idx, value, idx, layer))
+    with open(path, "wb") as f:
+        f.write((header + "\n").encode() + vals)
+
+
+left = lambda i, j, k: 1 if i < 4 and 1 < j < 7 and 1 < k < 7 else 0
+right = lambda i, j, k: 2 if i >= 4 and 1 < j < 7 and 1 < k < 7 else 0
+both = lambda i, j, k: left(i, j, k) or right(i, j, k)
+seg_ok1 = os.path.join(inputs, "ok1.seg.nrrd")
+seg_nrrd(seg_ok1, [both], [("femur", 1, 0), ("tibia", 2, 0)])
+seg_ok2 = os.path.join(inputs, "ok2.seg.nrrd")  # value 1 in two layers: Slicer's overlap layout
+seg_nrrd(seg_ok2, [left, lambda i, j, k: 1 if i >= 4 and 1 < j < 7 and 1 < k < 7 else 0],
+         [("femur", 1, 0), ("tibia", 1, 1)])
+for path in (seg_ok1, seg_ok2):
+    r = run("info", path)
+    check(r.returncode == 0, "%s is read (rc=%d, %s)" % (os.path.basename(path), r.returncode,
+                                                          r.stderr[-300:]))
+dup_cases = [
+    ("one layer", [both], [("femur", 1, 0), ("tibia", 2, 0), ("patella", 1, 0)],
+     ["'femur' (id segment_0)", "'patella' (id segment_2)", "labelvalue 1 in layer 0"]),
+    ("two layers", [both, lambda i, j, k: 1 if k == 0 else 0],
+     [("femur", 1, 0), ("tibia", 2, 0), ("cartilage", 1, 1), ("fibula", 2, 0)],
+     ["'tibia' (id segment_1)", "'fibula' (id segment_3)", "labelvalue 2 in layer 0"]),
+]
+for i, (name, layers, segs, words) in enumerate(dup_cases):
+    path = os.path.join(inputs, "dup%d.seg.nrrd" % i)
+    seg_nrrd(path, layers, segs)
+    mesh_and_info(".seg.nrrd duplicate LabelValue, " + name, path, 9, "dup%d.seg.nrrd" % i,
+                  [(w,) for w in words] + [("re-export",), ("3d slicer",)])
 
 if failures:
     print("\n%d failure(s)" % len(failures))
