@@ -9,7 +9,10 @@ partial, temporary or replaced file). Every input is generated here (no binary f
  - a .vtu/.vtk write failing (file size limit) is exit 11 with one plain line, not VTK's dump;
  - headers claiming more voxels than the file holds or than the machine's memory;
  - truncated and corrupt compressed data (.nii.gz cut short, NRRD gzip with a flipped byte);
-   bzip2 NRRD data, which the reader cannot decode, is said to be that, not damaged.
+   bzip2 NRRD data, which the reader cannot decode, is said to be that, not damaged;
+ - absurd geometry (NaN, infinite, zero or negative spacing, singular directions, an origin that is
+   not finite or too far away) in NRRD, NIfTI and MetaImage headers: exit 5 naming the field;
+ - two segments with the same LabelValue in one layer of a .seg.nrrd: exit 9 naming both.
 A file size limit (RLIMIT_FSIZE, SIGXFSZ ignored) makes writes fail with EFBIG past the limit, as
 they fail with ENOSPC on a full disk. Uses only the Python standard library."""
 import bz2
@@ -328,6 +331,171 @@ with open(bz, "wb") as f:
             bz2.compress(bytes([1]) * 64))
 mesh_and_info("bzip2 NRRD", bz, UNREADABLE, "bz.nrrd",
               [("bzip2",), ("not damaged",), ("gzip or raw",)])
+
+# ----------------------------------------------------------------------------------------------
+# 5. Absurd geometry (exit 5, an invalid header): the message names the file, the field and its
+# value, and says to fix the header and check it with `femesher info`. NaN/infinite/zero/negative
+# spacing, direction vectors that are not finite, zero or dependent, an origin that is not finite
+# or so far away that voxel positions lose their precision.
+GEO_REMEDY = [("fix the header",), ("femesher info",)]
+
+
+def nrrd_geometry(path, fields, n=8):
+    """A uint8 NRRD ball of label 1 whose geometry lines are `fields` (a string)."""
+    c = (n - 1) / 2.0
+    data = bytes(1 if (x - c) ** 2 + (y - c) ** 2 + (z - c) ** 2 < (n / 2.6) ** 2 else 0
+                 for z in range(n) for y in range(n) for x in range(n))
+    with open(path, "wb") as f:
+        f.write(("NRRD0004\ntype: uint8\ndimension: 3\nsizes: %d %d %d\n%s\nkinds: domain domain "
+                 "domain\nencoding: raw\n\n" % (n, n, n, fields)).encode() + data)
+
+
+LPS = "space: left-posterior-superior\n"
+nrrd_cases = [
+    ("spacings nan", "spacings: nan 1 1", ["spacings", "'nan'", "finite"]),
+    ("spacings inf", "spacings: 1 inf 1", ["spacings", "'inf'", "finite"]),
+    ("spacings 0", "spacings: 1 1 0", ["spacings", "'0'", "greater than 0"]),
+    ("spacings negative", "spacings: -0.5 1 1", ["spacings", "'-0.5'", "greater than 0"]),
+    ("space directions nan", LPS + "space directions: (nan,0,0) (0,1,0) (0,0,1)",
+     ["space directions", "(nan, 0, 0)", "finite"]),
+    ("space directions inf", LPS + "space directions: (1,0,0) (0,inf,0) (0,0,1)",
+     ["space directions", "(0, inf, 0)", "finite"]),
+    ("space directions zero vector", LPS + "space directions: (1,0,0) (0,0,0) (0,0,1)",
+     ["space directions", "(0, 0, 0)", "size 0"]),
+    ("space directions singular", LPS + "space directions: (1,0,0) (0,1,0) (1,1,0)",
+     ["space directions", "(1,1,0)", "not independent"]),
+    ("space origin nan", LPS + "space directions: (1,0,0) (0,1,0) (0,0,1)\nspace origin: (0,nan,0)",
+     ["space origin", "(0, nan, 0)", "finite"]),
+    ("space origin 1e300", LPS + "space directions: (1,0,0) (0,1,0) (0,0,1)\n"
+     "space origin: (1e300,0,0)", ["origin", "1e+300", "precision"]),
+    ("space origin 2e12", LPS + "space directions: (1,0,0) (0,1,0) (0,0,1)\n"
+     "space origin: (0,0,-2e12)", ["origin", "-2e+12", "within 1e+12"]),
+    # Within 1e12 mm, but 1e9 mm is not representable to 1e-6 of a 0.001 mm voxel.
+    ("space origin 1e9 with 0.001 mm voxels", LPS + "space directions: (0.001,0,0) (0,0.001,0) "
+     "(0,0,0.001)\nspace origin: (1e9,0,0)", ["origin", "1e+09", "precision"]),
+]
+for i, (name, fields, words) in enumerate(nrrd_cases):
+    path = os.path.join(inputs, "geo%d.nrrd" % i)
+    nrrd_geometry(path, fields)
+    mesh_and_info("NRRD " + name, path, CORRUPT, "geo%d.nrrd" % i,
+                  [(w.lower(),) for w in words] + GEO_REMEDY)
+# Sane geometry far from 0 (1e5 mm, oblique, anisotropic) is read.
+sane = os.path.join(inputs, "sane.nrrd")
+nrrd_geometry(sane, LPS + "space directions: (0.6,0.1,0) (-0.1,0.6,0) (0,0,2.5)\n"
+              "space origin: (1e5,-3e4,250)")
+r = run("info", sane)
+check(r.returncode == 0, "sane geometry far from 0 is read (rc=%d, %s)"
+      % (r.returncode, r.stderr[-300:]))
+
+
+def nifti_geometry(pixdim=(1, 1, 1), qform=None, srow=None):
+    """nifti() with pixdim[1..3], a qform (quatern_b, c, d, qoffset_x, y, z) or sform rows."""
+    b = bytearray(nifti(n=8))
+    struct.pack_into("<3f", b, 80, *pixdim)
+    if qform is not None:
+        struct.pack_into("<hh", b, 252, 1, 0)
+        struct.pack_into("<6f", b, 256, *qform)
+    if srow is not None:
+        struct.pack_into("<12f", b, 280, *srow)
+    return bytes(b)
+
+
+nan, inf = float("nan"), float("inf")
+IDENTITY = (1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0)
+nifti_cases = [
+    ("pixdim nan", dict(pixdim=(nan, 1, 1)), ["pixdim[1]", "nan", "finite"]),
+    ("pixdim inf", dict(pixdim=(1, inf, 1)), ["pixdim[2]", "inf", "finite"]),
+    ("pixdim 0", dict(pixdim=(1, 1, 0)), ["pixdim[3]", "is 0", "greater than 0"]),
+    ("pixdim negative", dict(pixdim=(1, -2, 1)), ["pixdim[2]", "-2", "greater than 0"]),
+    ("qoffset nan", dict(qform=(0, 0, 0, 0, nan, 0)), ["qoffset_y", "nan", "finite"]),
+    ("srow inf", dict(srow=(1, 0, 0, 0, 0, 1, 0, inf, 0, 0, 1, 0)), ["srow_y", "inf", "finite"]),
+    ("sform singular", dict(srow=(1, 0, 0, 0, 0, 1, 0, 0, 1, 1, 0, 0)),
+     ["sform", "(1, 1, 0, 0)", "not independent"]),
+    ("sform origin 1e30", dict(srow=(1, 0, 0, 1e30, 0, 1, 0, 0, 0, 0, 1, 0)),
+     ["srow_x[3]", "origin", "within 1e+12 mm"]),
+    ("qoffset 1e13", dict(qform=(0, 0, 0, 0, 0, -1e13)),  # -1e13 as a float32
+     ["qoffset_z", "-9999999827968 mm", "within 1e+12 mm"]),
+    # Within 1e12 mm but not exact to 1e-6 of a 0.001 mm voxel (ITK passes it on).
+    ("sform origin 1e9, 0.001 mm voxels", dict(pixdim=(0.001, 0.001, 0.001), srow=(
+        0.001, 0, 0, 1e9, 0, 0.001, 0, 0, 0, 0, 0.001, 0)), ["srow_x[3]", "1e+09 mm", "precision"]),
+]
+for i, (name, kw, words) in enumerate(nifti_cases):
+    for ext, pack in ((".nii", lambda b: b), (".nii.gz", lambda b: gzip.compress(b, mtime=0))):
+        path = os.path.join(inputs, "geo%d%s" % (i, ext))
+        with open(path, "wb") as f:
+            f.write(pack(nifti_geometry(**kw)))
+        mesh_and_info("NIfTI%s %s" % (ext, name), path, CORRUPT, "geo%d%s" % (i, ext),
+                      [(w.lower(),) for w in words] + GEO_REMEDY)
+
+# MetaImage: ITK passes its geometry through; the same checks name the field and the value.
+mha_cases = [
+    ("ElementSpacing nan", "ElementSpacing = nan 1 1", ["`elementspacing`", "'nan 1 1'", "finite"]),
+    ("Offset inf", "Offset = 0 -inf 0", ["`offset`", "'0 -inf 0'", "finite"]),
+    ("ElementSpacing 0", "ElementSpacing = 1 0 1", ["spacing along axis j", "is 0 mm"]),
+    ("TransformMatrix singular", "TransformMatrix = 1 0 0 0 1 0 1 1 0",
+     ["direction matrix's determinant is 0", "not independent"]),
+    ("Offset 1e300", "Offset = 0 0 1e300", ["origin", "1e+300", "precision"]),
+]
+for i, (name, line, words) in enumerate(mha_cases):
+    path = os.path.join(inputs, "geo%d.mha" % i)
+    n = 8
+    with open(path, "wb") as f:
+        f.write(("ObjectType = Image\nNDims = 3\nDimSize = %d %d %d\n%s\nElementType = MET_UCHAR\n"
+                 "ElementDataFile = LOCAL\n" % (n, n, n, line)).encode() +
+                bytes(1 if 1 < x < 6 else 0 for z in range(n) for y in range(n) for x in range(n)))
+    mesh_and_info("MetaImage " + name, path, CORRUPT, "geo%d.mha" % i,
+                  [(w.lower(),) for w in words] + GEO_REMEDY)
+
+# ----------------------------------------------------------------------------------------------
+# 6. Two segments with the same LabelValue in one layer of a .seg.nrrd: exit 9 (every voxel of
+# that value would belong to both), naming both segments, the value and a remedy. The same
+# LabelValue in two layers is how 3D Slicer stores overlapping segments and stays accepted.
+def seg_nrrd(path, layers, segments, n=8):
+    """A .seg.nrrd: `layers` functions (i, j, k) -> value (one layer: 3-D, else a "list" axis
+    first); `segments` are (name, LabelValue, layer)."""
+    vals = bytes(layer(i, j, k) for k in range(n) for j in range(n) for i in range(n)
+                 for layer in layers)
+    if len(layers) == 1:
+        header = ("NRRD0004\ntype: unsigned char\ndimension: 3\nsizes: %d %d %d\n"
+                  "kinds: domain domain domain\nspace: left-posterior-superior\n"
+                  "space directions: (1,0,0) (0,1,0) (0,0,1)\n" % (n, n, n))
+    else:
+        header = ("NRRD0004\ntype: unsigned char\ndimension: 4\nsizes: %d %d %d %d\n"
+                  "kinds: list domain domain domain\nspace: left-posterior-superior\n"
+                  "space directions: none (1,0,0) (0,1,0) (0,0,1)\n" % (len(layers), n, n, n))
+    header += "space origin: (0,0,0)\nencoding: raw\nendian: little\n"
+    for idx, (name, value, layer) in enumerate(segments):
+        header += ("Segment%d_ID:=Segment_%d\nSegment%d_Name:=%s\nSegment%d_Color:=0.1 0.2 0.3\n"
+                   "Segment%d_LabelValue:=%d\nSegment%d_Layer:=%d\n"
+                   % (idx, idx, idx, name, idx, idx, value, idx, layer))
+    with open(path, "wb") as f:
+        f.write((header + "\n").encode() + vals)
+
+
+left = lambda i, j, k: 1 if i < 4 and 1 < j < 7 and 1 < k < 7 else 0
+right = lambda i, j, k: 2 if i >= 4 and 1 < j < 7 and 1 < k < 7 else 0
+both = lambda i, j, k: left(i, j, k) or right(i, j, k)
+seg_ok1 = os.path.join(inputs, "ok1.seg.nrrd")
+seg_nrrd(seg_ok1, [both], [("femur", 1, 0), ("tibia", 2, 0)])
+seg_ok2 = os.path.join(inputs, "ok2.seg.nrrd")  # value 1 in two layers: Slicer's overlap layout
+seg_nrrd(seg_ok2, [left, lambda i, j, k: 1 if i >= 4 and 1 < j < 7 and 1 < k < 7 else 0],
+         [("femur", 1, 0), ("tibia", 1, 1)])
+for path in (seg_ok1, seg_ok2):
+    r = run("info", path)
+    check(r.returncode == 0, "%s is read (rc=%d, %s)" % (os.path.basename(path), r.returncode,
+                                                          r.stderr[-300:]))
+dup_cases = [
+    ("one layer", [both], [("femur", 1, 0), ("tibia", 2, 0), ("patella", 1, 0)],
+     ["'femur' (id segment_0)", "'patella' (id segment_2)", "labelvalue 1 in layer 0"]),
+    ("two layers", [both, lambda i, j, k: 1 if k == 0 else 0],
+     [("femur", 1, 0), ("tibia", 2, 0), ("cartilage", 1, 1), ("fibula", 2, 0)],
+     ["'tibia' (id segment_1)", "'fibula' (id segment_3)", "labelvalue 2 in layer 0"]),
+]
+for i, (name, layers, segs, words) in enumerate(dup_cases):
+    path = os.path.join(inputs, "dup%d.seg.nrrd" % i)
+    seg_nrrd(path, layers, segs)
+    mesh_and_info(".seg.nrrd duplicate LabelValue, " + name, path, 9, "dup%d.seg.nrrd" % i,
+                  [(w,) for w in words] + [("re-export",), ("3d slicer",)])
 
 if failures:
     print("\n%d failure(s)" % len(failures))

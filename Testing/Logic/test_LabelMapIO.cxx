@@ -606,6 +606,25 @@ TEST(LabelMapIO, SegNrrdOverlappingLayersAreRefused) {
   EXPECT_NE(msg.find("Logical operators"), std::string::npos) << msg;
 }
 
+TEST(LabelMapIO, SegNrrdDuplicateLabelValuesInOneLayerAreRefused) {
+  // Two segments with LabelValue 1 in layer 0: every voxel of value 1 would belong to both.
+  std::vector<uint8_t> data(size_t(4 * 4 * 4), 0);
+  for (size_t i = 0; i < data.size(); ++i) data[i] = uint8_t(i % 3 == 0 ? 1 : (i % 3 == 1 ? 2 : 0));
+  const std::string header = "NRRD0004\ntype: unsigned char\ndimension: 3\nsizes: 4 4 4\n" + kSegGeometry +
+                             "space directions: (1,0,0) (0,1,0) (0,0,1)\nkinds: domain domain domain\n"
+                             "endian: little\nencoding: raw\n" +
+                             segmentKeys(0, "femur", "1 0 0", 1, 0) + segmentKeys(1, "tibia", "0 1 0", 2, 0) +
+                             segmentKeys(2, "patella", "0 0 1", 1, 0) + "\n";
+  const std::string path = tmpFile("duplicate_value.seg.nrrd");
+  writeBytes(path, header, data.data(), data.size());
+  expectError(path, ErrorCode::OverlappingSegments);
+  const std::string msg = readLabelMap(path).status().message();
+  EXPECT_NE(msg.find("'femur' (ID Segment_1) and 'patella' (ID Segment_3) both have LabelValue 1 in layer 0"),
+            std::string::npos)
+      << msg;
+  EXPECT_NE(msg.find("re-export"), std::string::npos) << msg;
+}
+
 // --- writing -------------------------------------------------------------------------------------
 
 class LabelMapIORoundTrip : public ::testing::TestWithParam<std::string> {};

@@ -108,6 +108,46 @@ TEST(LabelValidation, GeometryNeedsPositiveSpacingIndependentAxesAndVoxels) {
   expectError(validateLabelGeometry(bad, "in.nrrd"), ErrorCode::EmptyLabelMap, "no voxels");
 }
 
+TEST(LabelValidation, GeometryNamesTheFieldAndValueOfAnAbsurdHeader) {
+  LabelVolume v = volumeOf({2, 2, 2}, std::vector<int32_t>(8, 1));
+  auto message = [](const Status& s) { return s.message(); };
+  auto has = [](const std::string& text, const std::string& part) {
+    return text.find(part) != std::string::npos;
+  };
+  LabelVolume bad = v;
+  bad.spacing[2] = -0.5;
+  std::string m = message(validateLabelGeometry(bad, "in.nrrd"));
+  EXPECT_TRUE(has(m, "spacing along axis k is -0.5 mm") && has(m, "femesher info")) << m;
+  bad = v;
+  bad.spacing[0] = std::numeric_limits<double>::infinity();
+  m = message(validateLabelGeometry(bad, "in.nrrd"));
+  EXPECT_TRUE(has(m, "spacing along axis i is inf mm") && has(m, "finite")) << m;
+  bad = v;
+  bad.direction[4] = std::nan("");  // NaN makes the determinant NaN, which must not pass
+  expectError(validateLabelGeometry(bad, "in.nrrd"), ErrorCode::CorruptFile, "NaN direction");
+  bad = v;
+  bad.direction = {1, 0, 0, 0, 1, 0, 0, 0, 0};
+  expectError(validateLabelGeometry(bad, "in.nrrd"), ErrorCode::CorruptFile, "singular");
+  bad = v;
+  bad.origin[1] = std::nan("");
+  m = message(validateLabelGeometry(bad, "in.nrrd"));
+  EXPECT_TRUE(has(m, "origin is nan mm")) << m;
+  bad = v;
+  bad.origin = {1e300, 0, 0};
+  m = message(validateLabelGeometry(bad, "in.nrrd"));
+  EXPECT_EQ(validateLabelGeometry(bad, "in.nrrd").code(), ErrorCode::CorruptFile) << m;
+  EXPECT_TRUE(has(m, "(1e+300, 0, 0)") && has(m, "precision")) << m;
+  bad.origin = {0, -2e12, 0};  // beyond 1e12 mm even though 1 mm voxels would still be exact
+  expectError(validateLabelGeometry(bad, "in.nrrd"), ErrorCode::CorruptFile, "origin 2e12");
+  // 1e9 mm is exact to 1e-6 of a 1 mm voxel (ulp 1.2e-7 mm), not of a 0.001 mm voxel.
+  bad.origin = {1e9, 0, 0};
+  EXPECT_TRUE(validateLabelGeometry(bad, "in.nrrd").isOk());
+  bad.spacing = {0.001, 0.001, 0.001};
+  expectError(validateLabelGeometry(bad, "in.nrrd"), ErrorCode::CorruptFile, "origin 1e9");
+  bad.origin = {1e5, -3e4, 250};  // a scanner origin far from 0 is fine
+  EXPECT_TRUE(validateLabelGeometry(bad, "in.nrrd").isOk());
+}
+
 TEST(LabelValidation, VolumeReturnsItsLabelsWithoutBackground) {
   const LabelVolume v = volumeOf({2, 2, 2}, {0, 5, 5, -3, 0, 70000, 5, 0});
   const auto present = validateLabelVolume(v, "in.nrrd");

@@ -1,10 +1,13 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/io/LabelMapFiles.h>
+#include <femesher/io/LabelValidation.h>
 
 #include <itkMacro.h>
 #include <zlib.h>
 
 #include <algorithm>
+#include <cctype>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -103,7 +106,232 @@ std::string inflateAll(std::istream& in, uintmax_t& decoded) {
   return error;
 }
 
+/// The entries of a NRRD per-axis vector field ("(1,0,0) none (0,1,0)"): one per axis, empty
+/// for "none"; `ok` false when an entry is not a list of numbers.
+std::vector<std::vector<double>> nrrdVectors(const std::string& text, bool& ok) {
+  std::vector<std::vector<double>> out;
+  ok = true;
+  size_t i = 0;
+  while (i < text.size()) {
+    if (std::isspace(static_cast<unsigned char>(text[i]))) {
+      ++i;
+      continue;
+    }
+    if (text[i] != '(') {  // "none" (or a word ITK will refuse itself)
+      const size_t end = text.find_first_of(" \t", i);
+      out.emplace_back();
+      i = end == std::string::npos ? text.size() : end;
+      continue;
+    }
+    const size_t close = text.find(')', i);
+    if (close == std::string::npos) {
+      ok = false;
+      return out;
+    }
+    std::string inner = text.substr(i + 1, close - i - 1);
+    std::replace(inner.begin(), inner.end(), ',', ' ');
+    std::vector<double> v;
+    const char* p = inner.c_str();
+    while (true) {
+      while (std::isspace(static_cast<unsigned char>(*p))) ++p;
+      if (*p == '\0') break;
+      char* end = nullptr;
+      const double x = std::strtod(p, &end);
+      if (end == p) {
+        ok = false;
+        return out;
+      }
+      v.push_back(x);
+      p = end;
+    }
+    out.push_back(v);
+    i = close + 1;
+  }
+  return out;
+}
+
+std::string vectorText(const std::vector<double>& v) {
+  std::string t = "(";
+  for (size_t k = 0; k < v.size(); ++k) t += (k ? ", " : "") + number(v[k]);
+  return t + ")";
+}
+
+/// |det| of the 3x3 matrix with columns a, b, c, divided by the product of their lengths (1 for
+/// orthogonal axes, 0 for dependent ones).
+double normalizedDeterminant(const double* a, const double* b, const double* c) {
+  const double det = a[0] * (b[1] * c[2] - b[2] * c[1]) - b[0] * (a[1] * c[2] - a[2] * c[1]) +
+                     c[0] * (a[1] * b[2] - a[2] * b[1]);
+  const double la = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+  const double lb = std::sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+  const double lc = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+  return la > 0 && lb > 0 && lc > 0 ? std::fabs(det) / (la * lb * lc) : 0.0;
+}
+
+const char* const kAxisNames[3] = {"i", "j", "k"};
+
+/// The geometry of a NRRD header (see checkNrrd): NaN, infinite, zero or negative spacings,
+/// direction vectors that are not finite, zero or independent, an origin that is not finite.
+Status checkNrrdGeometry(const std::string& path, std::map<std::string, std::string>& h) {
+  const int dim = std::atoi(h["dimension"].c_str());
+  if (dim < 1 || dim > 16) return Status::ok();  // ITK refuses such headers itself
+  std::vector<std::string> kinds;
+  {
+    std::istringstream in(h["kinds"]);
+    for (std::string k; in >> k;) kinds.push_back(k);
+  }
+  auto spatial = [&](int axis) {
+    if (size_t(axis) >= kinds.size()) return true;
+    const std::string& k = kinds[size_t(axis)];
+    return k == "domain" || k == "space" || k == "time" || k == "???";
+  };
+  std::vector<int> spatialAxes;
+  for (int a = 0; a < dim; ++a)
+    if (spatial(a)) spatialAxes.push_back(a);
+  auto axisName = [&](int axis) {
+    const auto it = std::find(spatialAxes.begin(), spatialAxes.end(), axis);
+    const size_t s = size_t(it - spatialAxes.begin());
+    return (s < 3 ? std::string(kAxisNames[s]) + " (axis " : "(axis ") + std::to_string(axis) + ")";
+  };
+  if (!h["spacings"].empty()) {
+    std::istringstream in(h["spacings"]);
+    std::string word;
+    for (int a = 0; a < dim && in >> word; ++a) {
+      if (!spatial(a)) continue;
+      char* end = nullptr;
+      const double x = std::strtod(word.c_str(), &end);
+      if (*end != '\0') continue;  // not a number: ITK's own message
+      if (!(x > 0) || !std::isfinite(x))
+        return badGeometry(path, "`spacings` value along " + axisName(a), "'" + word + "'",
+                           std::isfinite(x) ? "a voxel size must be greater than 0"
+                                            : "a voxel size must be a finite number");
+    }
+  }
+  if (!h["spacedirections"].empty()) {
+    bool ok = true;
+    const auto dirs = nrrdVectors(h["spacedirections"], ok);
+    std::vector<const std::vector<double>*> columns;
+    for (int a = 0; ok && a < dim && size_t(a) < dirs.size(); ++a) {
+      const std::vector<double>& d = dirs[size_t(a)];
+      if (d.empty() || !spatial(a)) continue;
+      double length = 0;
+      for (double x : d) {
+        if (!std::isfinite(x))
+          return badGeometry(path, "`space directions` vector of " + axisName(a), vectorText(d),
+                             "its entries must be finite numbers");
+        length += x * x;
+      }
+      if (!(length > 0))
+        return badGeometry(path, "`space directions` vector of " + axisName(a), vectorText(d),
+                           "a zero vector gives voxels of size 0");
+      columns.push_back(&d);
+    }
+    if (ok && columns.size() == 3 && columns[0]->size() == 3 && columns[1]->size() == 3 &&
+        columns[2]->size() == 3 &&
+        normalizedDeterminant(columns[0]->data(), columns[1]->data(), columns[2]->data()) < 1e-6)
+      return badGeometry(path, "`space directions`", "'" + h["spacedirections"] + "'",
+                         "the three axes are not independent, so voxels have no volume");
+  }
+  if (!h["spaceorigin"].empty()) {
+    bool ok = true;
+    const auto origin = nrrdVectors(h["spaceorigin"], ok);
+    if (ok && !origin.empty())
+      for (double x : origin.front())
+        if (!std::isfinite(x))
+          return badGeometry(path, "`space origin`", vectorText(origin.front()),
+                             "a position must be a finite number");
+  }
+  return Status::ok();
+}
+
+/// The geometry fields of a NIfTI-1 or NIfTI-2 header.
+struct NiftiGeometry {
+  int nd = 0;
+  double pixdim[8] = {};
+  int qformCode = 0, sformCode = 0;
+  double quatern[6] = {};  ///< quatern_b, _c, _d, qoffset_x, _y, _z
+  double srow[12] = {};    ///< srow_x, srow_y, srow_z
+};
+
+/// See checkNifti: ITK reads a NaN, infinite or zero pixdim as 1 mm without a word.
+Status checkNiftiGeometry(const std::string& path, const NiftiGeometry& g) {
+  for (int k = 1; k <= std::min(g.nd, 3); ++k)
+    if (!(g.pixdim[k] > 0) || !std::isfinite(g.pixdim[k]))
+      return badGeometry(path, "pixdim[" + std::to_string(k) + "] (the voxel size along " +
+                                   kAxisNames[k - 1] + ")",
+                         number(g.pixdim[k]),
+                         std::isfinite(g.pixdim[k]) ? "a voxel size must be greater than 0"
+                                                    : "a voxel size must be a finite number");
+  static const char* const quaternNames[6] = {"quatern_b", "quatern_c", "quatern_d",
+                                              "qoffset_x", "qoffset_y", "qoffset_z"};
+  const std::string farAway = "the origin must lie within " + number(kMaxCoordinate) + " mm of 0";
+  // ITK reads the qform and sform in float precision: an origin too far for the voxel size makes
+  // it refuse the direction cosines with a message of its own, so the same check as
+  // validateLabelGeometry is made here.
+  const double minSpacing = std::min({g.pixdim[1], g.pixdim[2], g.pixdim[3]});
+  auto imprecise = [&](const char* field, double offset) {
+    return badGeometry(path, field, number(offset) + " mm",
+                       "so far from 0 that voxel positions lose their precision for voxels of " +
+                           number(minSpacing) + " mm");
+  };
+  if (g.qformCode > 0)
+    for (int k = 0; k < 6; ++k) {
+      if (!std::isfinite(g.quatern[k]))
+        return badGeometry(path, std::string(quaternNames[k]) + " (of the qform)",
+                           number(g.quatern[k]), "it must be a finite number");
+      if (k >= 3 && std::fabs(g.quatern[k]) > kMaxCoordinate)
+        return badGeometry(path, std::string(quaternNames[k]) + " (of the qform)",
+                           number(g.quatern[k]) + " mm", farAway);
+      if (k >= 3 && !coordinatesExact(std::fabs(g.quatern[k]), minSpacing))
+        return imprecise((std::string(quaternNames[k]) + " (of the qform's origin)").c_str(),
+                         g.quatern[k]);
+    }
+  if (g.sformCode > 0) {
+    static const char* const rowNames[3] = {"srow_x", "srow_y", "srow_z"};
+    for (int k = 0; k < 12; ++k)
+      if (!std::isfinite(g.srow[k]))
+        return badGeometry(path, std::string(rowNames[k / 4]) + " (of the sform)",
+                           vectorText({g.srow[4 * (k / 4)], g.srow[4 * (k / 4) + 1],
+                                       g.srow[4 * (k / 4) + 2], g.srow[4 * (k / 4) + 3]}),
+                           "its entries must be finite numbers");
+    for (int r = 0; r < 3; ++r) {
+      const std::string field = std::string(rowNames[r]) + "[3] (the sform's origin)";
+      if (std::fabs(g.srow[4 * r + 3]) > kMaxCoordinate)
+        return badGeometry(path, field, number(g.srow[4 * r + 3]) + " mm", farAway);
+      if (!coordinatesExact(std::fabs(g.srow[4 * r + 3]), minSpacing))
+        return imprecise(field.c_str(), g.srow[4 * r + 3]);
+    }
+    const double a[3] = {g.srow[0], g.srow[4], g.srow[8]}, b[3] = {g.srow[1], g.srow[5], g.srow[9]},
+                 c[3] = {g.srow[2], g.srow[6], g.srow[10]};
+    if (normalizedDeterminant(a, b, c) < 1e-6)
+      return badGeometry(path, "sform (srow_x, srow_y, srow_z)",
+                         vectorText({g.srow[0], g.srow[1], g.srow[2], g.srow[3]}) + ", " +
+                             vectorText({g.srow[4], g.srow[5], g.srow[6], g.srow[7]}) + ", " +
+                             vectorText({g.srow[8], g.srow[9], g.srow[10], g.srow[11]}),
+                         "its three axes are not independent, so voxels have no volume");
+  }
+  return Status::ok();
+}
+
 }  // namespace
+
+std::string number(double x) {
+  if (std::isnan(x)) return "nan";
+  if (std::isinf(x)) return x > 0 ? "inf" : "-inf";
+  char text[40];
+  for (int precision = 1; precision <= 17; ++precision) {
+    std::snprintf(text, sizeof text, "%.*g", precision, x);
+    if (std::strtod(text, nullptr) == x) break;
+  }
+  return text;
+}
+
+Status badGeometry(const std::string& path, const std::string& field, const std::string& value,
+                   const std::string& why) {
+  return {ErrorCode::CorruptFile,
+          quoted(path) + " has an invalid header: its " + field + " is " + value + " (" + why +
+              "). Fix the header (e.g. in 3D Slicer: Volumes module > Volume Information, then "
+              "save the label map again) and check its geometry with `femesher info`."};
+}
 
 std::string trim(const std::string& s) {
   const auto a = s.find_first_not_of(" \t\r\n");
@@ -133,6 +361,21 @@ Status corrupt(const std::string& path, const std::string& what) {
 Status checkMetaImage(const std::string& path) {
   uintmax_t headerBytes = 0;
   const auto h = readMetaHeader(path, headerBytes);
+  // Geometry ITK's MetaIO cannot parse (NaN, infinities: it fails with an unrelated message).
+  for (const char* key : {"ElementSpacing", "Offset", "Origin", "Position", "TransformMatrix",
+                          "Rotation", "Orientation"}) {
+    const auto it = h.find(key);
+    if (it == h.end()) continue;
+    std::istringstream in(it->second);
+    for (std::string word; in >> word;) {
+      char* end = nullptr;
+      const double x = std::strtod(word.c_str(), &end);
+      if (*end != '\0') break;  // not a number: MetaIO's own message
+      if (!std::isfinite(x))
+        return badGeometry(path, "`" + std::string(key) + "`", "'" + it->second + "'",
+                           "its values must be finite numbers");
+    }
+  }
   const auto dataIt = h.find("ElementDataFile");
   if (dataIt == h.end()) return Status::ok();  // ITK reports a header without data itself
   const std::string dataFile = dataIt->second;
@@ -220,23 +463,38 @@ Status checkNifti(const std::string& path) {
     swap = true;
     sizeofHdr = i32(0, true);
   }
+  auto f64 = [&](size_t off, bool swap) { double x; std::memcpy(&x, get(off, 8, swap).data(), 8); return x; };
   uintmax_t voxels = 1, bitpix = 0, offset = 0;
+  NiftiGeometry g;
   if (sizeofHdr == 348) {
     const int nd = i16(40, swap);
     if (nd < 1 || nd > 7) return Status::ok();
+    g.nd = nd;
+    for (int k = 0; k < 8; ++k) g.pixdim[k] = f32(76 + 4 * size_t(k), swap);
+    g.qformCode = i16(252, swap);
+    g.sformCode = i16(254, swap);
+    for (int k = 0; k < 6; ++k) g.quatern[k] = f32(256 + 4 * size_t(k), swap);
+    for (int k = 0; k < 12; ++k) g.srow[k] = f32(280 + 4 * size_t(k), swap);
     for (int d = 1; d <= nd; ++d) voxels *= uintmax_t(std::max<int16_t>(1, i16(40 + 2 * size_t(d), swap)));
     bitpix = uintmax_t(std::max<int16_t>(0, i16(72, swap)));
     offset = uintmax_t(std::max(0.f, f32(108, swap)));
-    if (offset == 0) return Status::ok();  // a .hdr/.img pair: data elsewhere
+    if (offset == 0) return checkNiftiGeometry(path, g);  // a .hdr/.img pair: data elsewhere
   } else if (sizeofHdr == 540 && got == 540) {
     const int64_t nd = i64(16, swap);
     if (nd < 1 || nd > 7) return Status::ok();
+    g.nd = int(nd);
+    for (int k = 0; k < 8; ++k) g.pixdim[k] = f64(104 + 8 * size_t(k), swap);
+    g.qformCode = i32(344, swap);
+    g.sformCode = i32(348, swap);
+    for (int k = 0; k < 6; ++k) g.quatern[k] = f64(352 + 8 * size_t(k), swap);
+    for (int k = 0; k < 12; ++k) g.srow[k] = f64(400 + 8 * size_t(k), swap);
     for (int d = 1; d <= nd; ++d) voxels *= uintmax_t(std::max<int64_t>(1, i64(16 + 8 * size_t(d), swap)));
     bitpix = uintmax_t(std::max<int16_t>(0, i16(14, swap)));
     offset = uintmax_t(std::max<int64_t>(0, i64(168, swap)));
   } else {
     return Status::ok();  // not NIfTI: ITK decides
   }
+  if (Status s = checkNiftiGeometry(path, g); !s) return s;
   const uintmax_t expected = offset + voxels * bitpix / 8;
   std::error_code ec;
   const uintmax_t fileBytes = fs::file_size(path, ec);
@@ -282,6 +540,7 @@ Status checkNrrd(const std::string& path) {
     key.erase(std::remove(key.begin(), key.end(), ' '), key.end());  // "data file" = "datafile"
     h[key] = trim(line.substr(colon + 2));
   }
+  if (Status s = checkNrrdGeometry(path, h); !s) return s;
   const uintmax_t typeBytes = nrrdTypeBytes(h["type"]);
   if (typeBytes == 0 || h["sizes"].empty()) return Status::ok();
   std::istringstream sizes(h["sizes"]);

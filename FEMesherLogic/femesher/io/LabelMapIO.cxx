@@ -35,6 +35,7 @@ struct SegmentInfo {
   std::array<double, 3> color{{0.5, 0.5, 0.5}};
   bool hasColor = false;
   int32_t labelValue = 1;  ///< old .seg.nrrd files have no LabelValue: binary layers
+  bool hasLabelValue = false;
   int layer = 0;
 };
 
@@ -56,7 +57,10 @@ std::vector<SegmentInfo> parseSegments(const itk::MetaDataDictionary& dict) {
     const std::string field = key.substr(us + 1);
     if (field == "ID") s.id = value;
     else if (field == "Name") s.name = value;
-    else if (field == "LabelValue") s.labelValue = std::atoi(value.c_str());
+    else if (field == "LabelValue") {
+      s.labelValue = std::atoi(value.c_str());
+      s.hasLabelValue = true;
+    }
     else if (field == "Layer") s.layer = std::atoi(value.c_str());
     else if (field == "Color") {
       std::istringstream c(value);
@@ -72,6 +76,35 @@ std::vector<SegmentInfo> parseSegments(const itk::MetaDataDictionary& dict) {
   for (auto& [n, s] : segs)
     if (!s.id.empty() || !s.name.empty()) out.push_back(s);
   return out;
+}
+
+/// How a message names a segment: 'Name' (ID Segment_1).
+std::string segmentName(const SegmentInfo& s) {
+  std::string text = "'" + (s.name.empty() ? s.id : s.name) + "'";
+  if (!s.id.empty() && !s.name.empty()) text += " (ID " + s.id + ")";
+  return text;
+}
+
+/// Two segments with the same LabelValue in the same layer claim the same voxels: every voxel of
+/// that value would belong to both (an overlap the header makes, which 3D Slicer never writes).
+/// OverlappingSegments naming both segments, the value and the layer. Segments without an
+/// explicit LabelValue (old binary-layer files) are not compared.
+Status checkDuplicateLabelValues(const std::string& path, const std::vector<SegmentInfo>& segments) {
+  std::map<std::pair<int, int32_t>, const SegmentInfo*> owner;
+  for (const SegmentInfo& s : segments) {
+    if (!s.hasLabelValue) continue;
+    const auto [it, inserted] = owner.emplace(std::make_pair(s.layer, s.labelValue), &s);
+    if (inserted) continue;
+    return {ErrorCode::OverlappingSegments,
+            quoted(path) + ": segments " + segmentName(*it->second) + " and " + segmentName(s) +
+                " both have LabelValue " + std::to_string(s.labelValue) + " in layer " +
+                std::to_string(s.layer) + ", so every voxel of value " +
+                std::to_string(s.labelValue) + " would belong to both (a header 3D Slicer does "
+                "not write). Open the segmentation in 3D Slicer, check or remove one of the two "
+                "segments and re-export it (or export a label map: Segmentations > Export to "
+                "label map) and mesh that."};
+  }
+  return Status::ok();
 }
 
 /// Merge the layers of a .seg.nrrd (layer index fastest in `values`) into one label per voxel.
@@ -332,6 +365,10 @@ Result<LabelVolume> readLabelMap(const std::string& path) {
   LabelVolume v = geometryOf(*io, layout->spatial0);
   v.sourcePath = path;
   if (Status s = validateLabelGeometry(v, path); !s) return s;
+  // Segment names and colours: Slicer .seg.nrrd, and NRRD/MetaImage files written by FEMesher
+  // (which stores its material table under the same keys).
+  std::vector<SegmentInfo> segments = parseSegments(io->GetMetaDataDictionary());
+  if (Status s = checkDuplicateLabelValues(path, segments); !s) return s;
   const size_t n = v.voxelCount();
   // Before allocating: reading holds the voxels as stored plus one int32 per value (and one per
   // voxel to merge .seg.nrrd layers); refuse at once what this machine cannot hold.
@@ -342,10 +379,6 @@ Result<LabelVolume> readLabelMap(const std::string& path) {
     return s;
   auto values = readValues(*io, n * layers, path);
   if (!values) return values.status();
-
-  // Segment names and colours: Slicer .seg.nrrd, and NRRD/MetaImage files written by FEMesher
-  // (which stores its material table under the same keys).
-  std::vector<SegmentInfo> segments = parseSegments(io->GetMetaDataDictionary());
   if (layers > 1) {
     auto merged = mergeLayers(path, values.value(), n, layers, segments);
     if (!merged) return merged.status();

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <string>
 #include <unordered_set>
 
 namespace femesher {
@@ -98,15 +100,50 @@ Result<std::vector<int32_t>> labelsFromVoxels(const void* values, VoxelType type
 }
 
 Status validateLabelGeometry(const LabelVolume& v, const std::string& source) {
+  using labelio::badGeometry;
+  using labelio::number;
+  static const char* axisName[3] = {"i", "j", "k"};
   for (int a = 0; a < 3; ++a)
     if (!(v.spacing[a] > 0) || !std::isfinite(v.spacing[a]))
-      return {ErrorCode::CorruptFile, quoted(source) + " has a voxel spacing of " +
-                                          std::to_string(v.spacing[a]) + " mm along axis " +
-                                          std::to_string(a) + "; fix the header's spacing."};
-  if (std::fabs(v.directionDeterminant()) < 1e-6)
-    return {ErrorCode::CorruptFile, quoted(source) +
-                                        " has a degenerate direction matrix (axes not "
-                                        "independent); fix the header's orientation."};
+      return badGeometry(source, std::string("spacing along axis ") + axisName[a],
+                         number(v.spacing[a]) + " mm",
+                         std::isfinite(v.spacing[a]) ? "a voxel size must be greater than 0"
+                                                     : "a voxel size must be a finite number");
+  for (int k = 0; k < 9; ++k)
+    if (!std::isfinite(v.direction[k]))
+      return badGeometry(source,
+                         "direction matrix entry (row " + std::to_string(k / 3) + ", column " +
+                             std::to_string(k % 3) + ")",
+                         number(v.direction[k]), "its entries must be finite numbers");
+  const double det = v.directionDeterminant();
+  if (!(std::fabs(det) >= 1e-6))
+    return badGeometry(source, "direction matrix's determinant", number(det),
+                       "its axes are not independent, so voxels have no volume");
+  for (int r = 0; r < 3; ++r)
+    if (!std::isfinite(v.origin[r]))
+      return badGeometry(source, "origin", number(v.origin[r]) + " mm",
+                         "a position must be a finite number");
+  // Coordinates are doubles: every voxel position must be representable to 1e-6 of the smallest
+  // voxel (the mesh's vertices would otherwise collapse onto a few points).
+  const double minSpacing = std::min({v.spacing[0], v.spacing[1], v.spacing[2]});
+  double largest = 0;
+  for (int corner = 0; corner < 8; ++corner)
+    for (int r = 0; r < 3; ++r) {
+      double x = v.origin[r];
+      for (int a = 0; a < 3; ++a)
+        if (corner & (1 << a))
+          x += v.direction[3 * r + a] * v.spacing[a] * std::max(0, v.dims[a] - 1);
+      largest = std::max(largest, std::fabs(x));
+    }
+  const double maxOrigin = std::max({std::fabs(v.origin[0]), std::fabs(v.origin[1]),
+                                     std::fabs(v.origin[2])});
+  if (maxOrigin > kMaxCoordinate || !coordinatesExact(largest, minSpacing))
+    return badGeometry(source, "origin",
+                       "(" + number(v.origin[0]) + ", " + number(v.origin[1]) + ", " +
+                           number(v.origin[2]) + ") mm",
+                       "so far from 0 that voxel positions (up to " + number(largest) +
+                           " mm) lose their precision for voxels of " + number(minSpacing) +
+                           " mm; the origin must lie within " + number(kMaxCoordinate) + " mm");
   if (v.voxelCount() == 0) return {ErrorCode::EmptyLabelMap, quoted(source) + " has no voxels."};
   return Status::ok();
 }

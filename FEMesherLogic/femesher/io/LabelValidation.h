@@ -53,9 +53,19 @@ constexpr VoxelType voxelTypeOf() {
 Result<std::vector<int32_t>> labelsFromVoxels(const void* values, VoxelType type, size_t count,
                                               const std::string& source);
 
+/// The largest |origin| coordinate (mm) a label map may have: 1e12 mm.
+constexpr double kMaxCoordinate = 1e12;
+
+/// Whether coordinates up to `largest` mm (a double) are exact to 1e-6 of a voxel of `spacing` mm.
+inline bool coordinatesExact(double largest, double spacing) {
+  return largest * std::numeric_limits<double>::epsilon() <= 1e-6 * spacing;
+}
+
 /// The geometry of a label map, checked before its voxels are read: every spacing finite and
-/// > 0 mm and a direction matrix whose axes are independent (|det| >= 1e-6), else CorruptFile; at
-/// least one voxel, else EmptyLabelMap.
+/// > 0 mm, a finite direction matrix whose axes are independent (|det| >= 1e-6), a finite origin
+/// within kMaxCoordinate of 0 from which every voxel position is a double exact to 1e-6 of the
+/// smallest spacing, else CorruptFile naming the field and its value (see labelio::badGeometry);
+/// at least one voxel, else EmptyLabelMap.
 Status validateLabelGeometry(const LabelVolume& volume, const std::string& source);
 
 /// A whole label map: `validateLabelGeometry`, one label per voxel (InvalidArgument otherwise),
