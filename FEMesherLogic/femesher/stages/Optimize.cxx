@@ -287,7 +287,8 @@ bool onBoxPlane(const Editor& m, const OptimizeInterfaces& in, const std::array<
           in.boxPlanes(m.pts[size_t(f[2])])) != 0;
 }
 
-/// The facet-distance rule of peeling (Optimize.h): t's outer faces are not on the box, its other
+/// The facet-distance rule of peeling (Optimize.h): t's outer faces on the box have their apex
+/// within the facet distance of the box plane, its other
 /// faces, which become outer faces of the tets behind them, lie within the facet distance of
 /// those tets' interface with the background, and the outer boundary stays a manifold (the edge
 /// or vertex that comes to the surface is not on it already). nb: the tet across each face.
@@ -300,7 +301,18 @@ bool peelKeepsFacetDistance(const Editor& m, uint32_t t, const int64_t nb[4], in
   for (int k = 0; k < 4; ++k) {
     const auto f = m.face(t, k);
     if (nb[k] < 0) {
-      if (onBoxPlane(m, in, f)) return false;
+      // A face on the volume's box gives way only to faces within the facet distance of its
+      // plane (the apex is that close): the box stays flat to that distance.
+      const int planes = onBoxPlane(m, in, f) ? in.boxPlanes(m.pts[size_t(f[0])]) &
+                                                    in.boxPlanes(m.pts[size_t(f[1])]) &
+                                                    in.boxPlanes(m.pts[size_t(f[2])])
+                                              : 0;
+      for (size_t a = 0; a < 3; ++a)
+        for (int side = 0; side < 2; ++side)
+          if (planes & ((1 + side) << (2 * a))) {
+            const double plane = side ? in.boxHi[a] : in.boxLo[a];
+            if (std::fabs(m.pts[size_t(T[size_t(k)])][a] - plane) > in.facetDistance) return false;
+          }
       up.push_back(T[size_t(k)]);
       continue;
     }

@@ -27,10 +27,11 @@
 ///    cap, fin or isolated tet, and moves the outer boundary by at most `peelDistance`. A cap
 ///    (three or four outer faces) may be as thick as the interfaces' facet distance (when given):
 ///    its outer faces give way to the one below them. With interfaces, a thicker tet with one to
-///    three outer faces, none on the volume's box, goes too when every face it uncovers has its
-///    centroid within the facet distance of the interface of the tet behind it with the
-///    background, and the outer boundary stays a manifold (the edge or vertex it uncovers is not
-///    on the boundary already).
+///    three outer faces goes too when every face it uncovers has its centroid within the facet
+///    distance of the interface of the tet behind it with the background (the box counts as
+///    that interface), an outer face on the volume's box has its apex within the facet distance
+///    of the box's plane, and the outer boundary stays a manifold (the edge or vertex it
+///    uncovers is not on the boundary already).
 ///  - smoothing of interface vertices (given the smooth interfaces, OptimizeInterfaces, see
 ///    InterfaceSmoothing.h): a vertex with exactly two materials around (outside the mesh, away
 ///    from the volume's box, counting as background 0) moves in the tangent plane of its
