@@ -36,10 +36,27 @@ namespace fs = std::filesystem;
 namespace {
 
 std::atomic<RunContext*> gRunning{nullptr};
+/// True while the input is read: nothing is written yet, so a signal ends the process at once.
+std::atomic<bool> gReading{false};
 
+/// SIGINT/SIGTERM from the first byte read to the last rename: while reading, the canceled
+/// message and exit 12 at once (async-signal-safe: write and _exit); afterwards the run's cancel
+/// flag, which the stages poll and the output transaction checks before every write and rename.
 void onSignal(int) {
   if (RunContext* ctx = gRunning.load()) ctx->cancel();
+  if (gReading.load()) {
+    static const char text[] = "error [canceled]: The run was canceled.\n";
+    const ssize_t ignored = ::write(STDERR_FILENO, text, sizeof text - 1);
+    (void)ignored;
+    ::_exit(exitCodeFor(ErrorCode::Canceled));
+  }
 }
+
+/// Marks the reading of the input for onSignal while it lives.
+struct ReadingScope {
+  ReadingScope() { gReading = true; }
+  ~ReadingScope() { gReading = false; }
+};
 
 int fail(const Status& s) {
   std::fprintf(stderr, "error [%s]: %s\n", errorCodeName(s.code()), s.message().c_str());
@@ -198,8 +215,10 @@ Result<MeshingParameters> buildParameters(const MeshOptions& o) {
   return params;
 }
 
+struct CancellableRun;
 int writeRunOutputs(const PipelineResult& result, const MeshingParameters& params,
-                    const MeshOptions& o, const std::string& source, cli::CliProgress& progress);
+                    const MeshOptions& o, const std::string& source, cli::CliProgress& progress,
+                    CancellableRun& run);
 
 /// Reads a label map and, with `labelNames`, names its materials from that colour table.
 Result<LabelVolume> readNamedLabelMap(const std::string& input, const std::string& labelNames) {
@@ -213,7 +232,7 @@ Result<LabelVolume> readNamedLabelMap(const std::string& input, const std::strin
 }
 
 /// A run context showing its progress on `progress` and cancelled by Ctrl-C / SIGTERM while it
-/// lives.
+/// lives: a run makes it before reading its input and keeps it until its last output is renamed.
 struct CancellableRun {
   explicit CancellableRun(cli::CliProgress& progress) {
     ctx.setProgressCallback(
@@ -229,6 +248,13 @@ struct CancellableRun {
   RunContext ctx;
 };
 
+/// Removes what runs killed by SIGKILL left in the output folders (AtomicFile.h) and says so.
+void removeStaleFiles(const std::vector<std::string>& outputs, bool quiet) {
+  for (const auto& f : removeStaleTemporaries(outputs))
+    if (!quiet) std::fprintf(stderr, "note: removed %s, a temporary file of a run that ended "
+                                     "without finishing\n", f.c_str());
+}
+
 int runMesh(const MeshOptions& o) {
   auto params = buildParameters(o);
   if (!params) return fail(params.status());
@@ -236,22 +262,29 @@ int runMesh(const MeshOptions& o) {
     return fail({ErrorCode::InvalidArgument, "Nothing to write: give at least one -o OUTPUT."});
   if (Status s = checkOutputs(o.outputs, params.value(), {o.report, o.saveParameters}); !s)
     return fail(s);
-  if (!o.saveParameters.empty()) {
-    if (Status s = writeText(o.saveParameters, parametersToJson(params.value())); !s) return fail(s);
+  std::vector<std::string> all = o.outputs;
+  all.insert(all.end(), {o.report, o.saveParameters});
+  removeStaleFiles(all, o.quiet);
+  // Only the parameters: nothing to read or mesh. Otherwise they are written with the outputs.
+  if (o.outputs.empty() && o.report.empty()) {
+    const Status s = writeText(o.saveParameters, parametersToJson(params.value()));
+    return s ? 0 : fail(s);
   }
-  if (o.outputs.empty() && o.report.empty()) return 0;
 
   cli::CliProgress progress(cli::CliProgress::detect(o.quiet, o.slicerInvocation));
+  CancellableRun run(progress);  // Ctrl-C / SIGTERM from here to the last rename: exit 12
   progress.start("Meshing " + o.input);
-  auto volume = readNamedLabelMap(o.input, o.labelNames);
+  auto volume = [&] {
+    ReadingScope reading;
+    return readNamedLabelMap(o.input, o.labelNames);
+  }();
   if (!volume) {
     progress.finish(false);
     return fail(volume.status());
   }
-  auto result = [&] {
-    CancellableRun run(progress);
-    return runPipeline(volume.value(), params.value(), run.ctx);
-  }();
+  auto result = run.ctx.isCanceled()
+                    ? Result<PipelineResult>(ErrorCode::Canceled, "The run was canceled.")
+                    : runPipeline(volume.value(), params.value(), run.ctx);
   if (!result) {
     progress.finish(false);
     const Status& s = result.status();
@@ -259,7 +292,7 @@ int runMesh(const MeshOptions& o) {
     if (!meshing || s.message().find(o.input) != std::string::npos) return fail(s);
     return fail(Status(s.code(), o.input + ": " + s.message()));  // name the file
   }
-  return writeRunOutputs(result.value(), params.value(), o, o.input, progress);
+  return writeRunOutputs(result.value(), params.value(), o, o.input, progress, run);
 }
 
 /// The run's summary for people: counts, low-angle tets, Dice range and boundary distances (when
@@ -323,9 +356,11 @@ std::string runSummary(const PipelineResult& r, const std::vector<std::string>& 
   return text;
 }
 
-/// Writes a finished run's meshes and report, then its summary on stderr.
+/// Writes a finished run's meshes, report and parameters (--save-parameters) as one transaction
+/// that a signal cancels up to its last rename, then its summary on stderr.
 int writeRunOutputs(const PipelineResult& result, const MeshingParameters& params,
-                    const MeshOptions& o, const std::string& source, cli::CliProgress& progress) {
+                    const MeshOptions& o, const std::string& source, cli::CliProgress& progress,
+                    CancellableRun& run) {
   ExportOptions eo = exportOptionsFrom(params);
   eo.provenance = "femesher " FEMESHER_VERSION " from " + source;
   eo.contacts = result.contacts;
@@ -334,6 +369,7 @@ int writeRunOutputs(const PipelineResult& result, const MeshingParameters& param
   std::vector<std::string> exportWarnings;
   // Every output to a temporary file first; renamed into place only when all were written.
   OutputTransaction outputs;
+  outputs.setCancelFlag(run.ctx.cancelToken().flag());
   Status status;
   for (const auto& out : o.outputs) {
     status = outputs.stage(out, [&](const std::string& tmp) { return writeMesh(result.mesh, tmp, eo); });
@@ -344,6 +380,9 @@ int writeRunOutputs(const PipelineResult& result, const MeshingParameters& param
   if (status && !o.report.empty())
     status = outputs.stage(o.report, textWriter(o.report, addReportWarnings(result.reportJson,
                                                                             exportWarnings)));
+  if (status && !o.saveParameters.empty())
+    status = outputs.stage(o.saveParameters,
+                           textWriter(o.saveParameters, parametersToJson(params)));
   if (status) status = outputs.commit();
   if (!status) {
     progress.finish(false);
@@ -353,6 +392,7 @@ int writeRunOutputs(const PipelineResult& result, const MeshingParameters& param
   for (const auto& w : exportWarnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
   std::vector<std::string> written = o.outputs;
   if (!o.report.empty()) written.push_back(o.report);
+  if (!o.saveParameters.empty()) written.push_back(o.saveParameters);
   if (!o.quiet && progress.mode() != cli::CliProgress::Mode::Slicer)
     std::fputs(runSummary(result, written).c_str(), stderr);
   // The element check's one line, even with --quiet when the status is poor_elements.
@@ -382,25 +422,34 @@ int runOptimize(const std::string& meshPath, const std::string& labelsPath, cons
   if (!params) return fail(params.status());
   if (o.outputs.empty()) return fail({ErrorCode::InvalidArgument, "Nothing to write: give -o OUTPUT."});
   if (Status s = checkOutputs(o.outputs, params.value(), {o.report}); !s) return fail(s);
+  std::vector<std::string> all = o.outputs;
+  all.push_back(o.report);
+  removeStaleFiles(all, o.quiet);
   cli::CliProgress progress(cli::CliProgress::detect(o.quiet, false));
+  CancellableRun run(progress);  // Ctrl-C / SIGTERM from here to the last rename: exit 12
   progress.start("Optimizing " + meshPath);
-  auto mesh = readMeshFile(meshPath);
-  auto labels = mesh ? readLabelMap(labelsPath) : Result<LabelVolume>(mesh.status());
+  Result<MeshFile> mesh(ErrorCode::Internal, "");
+  Result<LabelVolume> labels(ErrorCode::Internal, "");
+  {
+    ReadingScope reading;
+    mesh = readMeshFile(meshPath);
+    labels = mesh ? readLabelMap(labelsPath) : Result<LabelVolume>(mesh.status());
+  }
   if (!mesh || !labels) {
     progress.finish(false);
     return fail(!mesh ? mesh.status() : labels.status());
   }
   if (mesh->elementOrder == 2)
     std::fprintf(stderr, "%s\n", quadraticInputNote(meshPath, params->elementOrder).c_str());
-  auto result = [&] {
-    CancellableRun run(progress);
-    return optimizeMesh(labels.value(), mesh->mesh, params.value(), run.ctx);
-  }();
+  auto result = run.ctx.isCanceled()
+                    ? Result<PipelineResult>(ErrorCode::Canceled, "The run was canceled.")
+                    : optimizeMesh(labels.value(), mesh->mesh, params.value(), run.ctx);
   if (!result) {
     progress.finish(false);
+    if (result.status().code() == ErrorCode::Canceled) return fail(result.status());
     return fail(Status(result.status().code(), meshPath + ": " + result.status().message()));
   }
-  return writeRunOutputs(result.value(), params.value(), o, meshPath, progress);
+  return writeRunOutputs(result.value(), params.value(), o, meshPath, progress, run);
 }
 
 int runInfo(const std::string& input, const std::string& labelNames, bool asJson) {

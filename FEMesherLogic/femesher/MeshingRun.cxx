@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/MeshingRun.h>
 #include <femesher/DeferredCurving.h>
+#include <femesher/ParameterRanges.h>
 #include <femesher/io/ContactSplit.h>
 #include <femesher/stages/InterfaceSmoothing.h>
 
@@ -58,6 +59,8 @@ std::vector<std::pair<std::string, double>> pipelineStagePlan(const MeshingParam
 MeshingRun::MeshingRun(const LabelVolume& input, const MeshingParameters& params, RunContext& ctx)
     : input_(input), params_(params), ctx_(ctx) {
   if (Status s = validate(params_); !s) throw Error(s.code(), s.message());
+  // Size-like parameters against this volume (ParameterRanges.h): before any heavy stage.
+  if (Status s = checkSizeParameters(params_, input_); !s) throw Error(s.code(), s.message());
   if (!params_.materialProperties.empty() || !params_.preprocess.names.empty()) {
     // Properties or names for a label the map does not have are a mistake: say so before meshing.
     std::set<int32_t> labels;

@@ -86,7 +86,8 @@ bool stageEnabled(StageId id, const MeshingParameters& params);
 
 class MeshingRun {
  public:
-  /// Validates `params` (throws Error(InvalidArgument)), applies the thread count to `ctx` and
+  /// Validates `params` and checks its size-like parameters against `input` (checkSizeParameters,
+  /// ParameterRanges.h; both throw Error(InvalidArgument)), applies the thread count to `ctx` and
   /// declares the stage plan. `input` and `ctx` must outlive the run.
   MeshingRun(const LabelVolume& input, const MeshingParameters& params, RunContext& ctx);
 

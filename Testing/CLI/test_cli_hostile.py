@@ -12,7 +12,10 @@ partial, temporary or replaced file). Every input is generated here (no binary f
    bzip2 NRRD data, which the reader cannot decode, is said to be that, not damaged;
  - absurd geometry (NaN, infinite, zero or negative spacing, singular directions, an origin that is
    not finite or too far away) in NRRD, NIfTI and MetaImage headers: exit 5 naming the field;
- - two segments with the same LabelValue in one layer of a .seg.nrrd: exit 9 naming both.
+ - two segments with the same LabelValue in one layer of a .seg.nrrd: exit 9 naming both;
+ - size-like parameters out of the range the volume allows (max_tet_volume=1e-9 ran for more than
+   300 s, target_edge_length=1e-9 crashed TetGen's child): exit 2 at once, from mesh and optimize,
+   naming the parameter, the value and the smallest useful value.
 A file size limit (RLIMIT_FSIZE, SIGXFSZ ignored) makes writes fail with EFBIG past the limit, as
 they fail with ENOSPC on a full disk. Uses only the Python standard library."""
 import bz2
@@ -51,9 +54,9 @@ def limits(file_size=None, address_space=None):
     return apply
 
 
-def run(*args, preexec=None):
+def run(*args, preexec=None, timeout=None):
     return subprocess.run([CLI, *args], capture_output=True, text=True, stdin=subprocess.DEVNULL,
-                          preexec_fn=preexec)
+                          preexec_fn=preexec, timeout=timeout)
 
 
 def listing(folder):
@@ -496,6 +499,44 @@ for i, (name, layers, segs, words) in enumerate(dup_cases):
     seg_nrrd(path, layers, segs)
     mesh_and_info(".seg.nrrd duplicate LabelValue, " + name, path, 9, "dup%d.seg.nrrd" % i,
                   [(w,) for w in words] + [("re-export",), ("3d slicer",)])
+
+# ----------------------------------------------------------------------------------------------
+# 7. Size-like parameters against the volume (the 14^3 ball of 1 mm voxels): refused before any
+# stage with exit 2, the parameter, its value, the smallest useful value and a remedy. A generous
+# timeout only guards against the hang these values caused.
+ranges = os.path.join(TMP, "ranges")
+os.mkdir(ranges)
+before = listing(ranges)
+range_cases = [
+    ("max_tet_volume=1e-9", ["tets", "50 m tets"], ["use max_tet_volume >="]),
+    ("target_edge_length=1e-9", ["tets", "smallest useful value"], ["use a value >="]),
+    ("h_max=1e-6", ["smallest useful value"], ["use h_max >="]),
+    ("h_min=1e-6", ["smallest voxel spacing"], ["use h_min >="]),
+    ("facet_distance=1e-6", ["0.02 voxels"], ["use facet_distance >="]),
+]
+for setting, why, remedy in range_cases:
+    key, value = setting.split("=")
+    try:
+        r = run("mesh", ball, "-o", os.path.join(ranges, "never.vtu"), "--set", setting, *fast,
+                timeout=120)
+    except subprocess.TimeoutExpired:
+        check(False, "--set %s: refused at once (still running after 120 s)" % setting)
+        continue
+    check_failure("--set " + setting, r, INVALID_ARGUMENT, "ball.nrrd",
+                  [(key,), ("%g" % float(value),)] + [(w,) for w in why] + [tuple(remedy)],
+                  ranges, before)
+# femesher optimize checks the same ranges (its sizing field follows target_edge_length).
+try:
+    r = run("optimize", os.path.join(ref, "m.vtu"), "--labels", ball, "-o",
+            os.path.join(ranges, "never.vtu"), "--set", "target_edge_length=1e-9", "-q", timeout=120)
+    check_failure("optimize --set target_edge_length=1e-9", r, INVALID_ARGUMENT, "ball.nrrd",
+                  [("target_edge_length",), ("1e-09",), ("smallest useful value",)], ranges, before)
+except subprocess.TimeoutExpired:
+    check(False, "optimize --set target_edge_length=1e-9: refused at once")
+# Values within the range still mesh.
+r = run("mesh", ball, "-o", os.path.join(ranges, "ok.vtu"), "--set", "max_tet_volume=5", *fast)
+check(r.returncode == 0 and os.path.exists(os.path.join(ranges, "ok.vtu")),
+      "max_tet_volume=5 meshes (rc=%d, %s)" % (r.returncode, r.stderr[-300:]))
 
 if failures:
     print("\n%d failure(s)" % len(failures))

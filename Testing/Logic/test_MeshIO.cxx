@@ -19,6 +19,7 @@
 #include <vtkXMLUnstructuredGridReader.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -28,6 +29,8 @@
 #include <sstream>
 #include <string>
 #include <vector>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <csignal>
 #include <sys/resource.h>
@@ -660,6 +663,81 @@ TEST(MeshIO, OutputTransactionWritesAllOrNothing) {
   EXPECT_EQ(after.size(), 2u);
   EXPECT_TRUE(readMesh(dir + "/old.vtu").isOk());
   EXPECT_TRUE(readMesh(dir + "/new.inp").isOk());
+}
+
+TEST(MeshIO, OutputTransactionHonoursCancelUpToTheLastRename) {
+  const std::string dir = tmpDir() + "/transaction_cancel";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::ofstream(dir + "/old.vtu") << "old";
+  const auto before = folderContent(dir);
+  const TetMesh m = twoMaterialCube();
+  std::atomic<bool> cancel{false};
+  auto mesh = [&](const std::string& tmp) { return writeMesh(m, tmp); };
+  {  // canceled between two writes: the next stage writes nothing, commit refuses
+    OutputTransaction t;
+    t.setCancelFlag(&cancel);
+    ASSERT_TRUE(t.stage(dir + "/old.vtu", mesh).isOk());
+    cancel = true;
+    bool wrote = false;
+    const Status s = t.stage(dir + "/new.inp", [&](const std::string& tmp) {
+      wrote = true;
+      return writeMesh(m, tmp);
+    });
+    EXPECT_EQ(s.code(), ErrorCode::Canceled);
+    EXPECT_FALSE(wrote);
+    EXPECT_EQ(t.commit().code(), ErrorCode::Canceled);
+  }
+  EXPECT_EQ(folderContent(dir), before);
+  cancel = false;
+  {  // canceled after every write, before the renames
+    OutputTransaction t;
+    t.setCancelFlag(&cancel);
+    ASSERT_TRUE(t.stage(dir + "/old.vtu", mesh).isOk());
+    ASSERT_TRUE(t.stage(dir + "/new.inp", mesh).isOk());
+    cancel = true;
+    EXPECT_EQ(t.commit().code(), ErrorCode::Canceled);
+  }
+  EXPECT_EQ(folderContent(dir), before);
+}
+
+TEST(MeshIO, TemporaryFilesNameTheirProcessAndStaleOnesAreRemoved) {
+  EXPECT_EQ(temporaryFileOwner(".mesh.femesher-tmp-1234-0.vtu"), 1234);
+  EXPECT_EQ(temporaryFileOwner(".knee.femesher-bak-77-12.nii.gz"), 77);
+  EXPECT_EQ(temporaryFileOwner("..m.femesher-tmp-5-0.femesher-tmp-5-1.vtu"), 5);  // nested
+  EXPECT_EQ(temporaryFileOwner(".report.femesher-tmp-9-0"), 9);                   // no extension
+  for (const char* other : {"mesh.femesher-tmp-1234-0.vtu", ".mesh.tmp1234_0.vtu",
+                            ".mesh.femesher-tmp-x-0.vtu", ".mesh.femesher-tmp-12-0.vtu~",
+                            ".mesh.femesher-tmp-12-0.a.b.c", ".femesher-tmp-12-0.vtu"})
+    EXPECT_EQ(temporaryFileOwner(other), 0) << other;
+  // The names a transaction makes are the pattern, with this process's id.
+  const std::string dir = tmpDir() + "/stale";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const long self = long(::getpid());
+  std::vector<long> owners;
+  EXPECT_TRUE(writeAtomically(dir + "/a.nii.gz", [&](const std::string& tmp) {
+                owners.push_back(temporaryFileOwner(fs::path(tmp).filename().string()));
+                std::ofstream(tmp) << "x";
+                return Status::ok();
+              }).isOk());
+  EXPECT_EQ(owners, std::vector<long>{self});
+  // A process that has ended: fork a child and reap it.
+  const pid_t dead = ::fork();
+  if (dead == 0) ::_exit(0);
+  int ws = 0;
+  ::waitpid(dead, &ws, 0);
+  const std::string stale = ".m.femesher-tmp-" + std::to_string(dead) + "-0.vtu";
+  const std::string mine = ".m.femesher-tmp-" + std::to_string(self) + "-0.vtu";
+  const std::string parent = ".m.femesher-tmp-" + std::to_string(::getppid()) + "-0.vtu";
+  for (const auto& n : {stale, mine, parent, std::string("m.femesher-tmp-") + std::to_string(dead) + "-0.vtu"})
+    std::ofstream(dir + "/" + n) << "x";
+  const auto removed = removeStaleTemporaries({dir + "/out.vtu"});
+  ASSERT_EQ(removed.size(), 1u);
+  EXPECT_EQ(fs::path(removed[0]).filename().string(), stale);
+  EXPECT_FALSE(fs::exists(dir + "/" + stale));
+  EXPECT_TRUE(fs::exists(dir + "/" + mine));
+  EXPECT_TRUE(fs::exists(dir + "/" + parent));
 }
 
 TEST(MeshIO, TwoOutputsThatAreOneFileAreRefused) {

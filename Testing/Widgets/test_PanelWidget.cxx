@@ -553,6 +553,36 @@ class PanelWidgetTest : public QObject {
     panel_->setMaterialIncluded(5, true);
   }
 
+  void sizeOutOfRangeForTheVolumeIsAnErrorNotAHang() {
+    // Issue 14, item 5: the panel's smallest target_edge_length step (0.01 mm) on the phantom's
+    // 1 mm voxels asks for about 1e11 tets. The run fails at once with the parameter, the
+    // smallest useful value and a remedy; no stage runs and the previous result stays.
+    auto previous = panel_->result();
+    const MeshingParameters before = panel_->parameters();
+    MeshingParameters p = before;
+    p.sizing.targetEdgeLength = 0.01;
+    panel_->setParameters(p);
+    QCOMPARE(panel_->parameters().sizing.targetEdgeLength, 0.01);
+    QSignalSpy progress(panel_.get(), &qFEMesherPanelWidget::progressChanged);
+    QSignalSpy ended(panel_.get(), &qFEMesherPanelWidget::runEnded);
+    QVERIFY(panel_->run());
+    if (!waitForEnd(60000)) {
+      panel_->cancel();
+      waitForEnd(60000);
+      QFAIL("the run did not end within 60 s");
+    }
+    QCOMPARE(ended.count(), 1);
+    QCOMPARE(ended.at(0).at(0).toString(), QStringLiteral("failed"));
+    const QString message = ended.at(0).at(1).toString();
+    QVERIFY2(message.contains(QStringLiteral("target_edge_length = 0.01 mm")) &&
+                 message.contains(QStringLiteral("smallest useful value")) &&
+                 message.contains(QStringLiteral("Use a value >=")),
+             qPrintable(message));
+    QVERIFY2(!reached(progress, QStringLiteral("IndicatorFunctions")), "a stage ran");
+    QCOMPARE(panel_->result().get(), previous.get());
+    panel_->setParameters(before);
+  }
+
   void cleanupTestCase() {
     if (panel_->isRunning()) {
       panel_->cancel();

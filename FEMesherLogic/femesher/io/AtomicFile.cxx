@@ -4,7 +4,11 @@
 #include <algorithm>
 #include <atomic>
 #include <cctype>
+#include <cerrno>
 #include <filesystem>
+#include <regex>
+#include <set>
+#include <signal.h>
 #include <system_error>
 #include <unistd.h>
 
@@ -20,14 +24,16 @@ fs::path folderOf(const fs::path& target) {
   return target.has_parent_path() ? target.parent_path() : fs::path(".");
 }
 
-/// ".<stem>.<kind><pid>_<n><ext>" next to `target`.
+/// ".<stem>.femesher-<kind>-<pid>-<n><ext>" next to `target` (temporaryFileOwner reads it).
 fs::path siblingName(const fs::path& target, const char* kind) {
   const std::string ext = fileExtension(target.string());
   std::string stem = target.filename().string();
   stem = stem.substr(0, stem.size() - ext.size());
-  return folderOf(target) / ("." + stem + "." + kind + std::to_string(::getpid()) + "_" +
-                             std::to_string(gCounter++) + ext);
+  return folderOf(target) / ("." + stem + ".femesher-" + kind + "-" + std::to_string(::getpid()) +
+                             "-" + std::to_string(gCounter++) + ext);
 }
+
+Status canceledStatus() { return {ErrorCode::Canceled, "The run was canceled."}; }
 
 /// `text` with every `from` replaced by `to` (messages name the target, not the temporary).
 std::string replaceAll(std::string text, const std::string& from, const std::string& to) {
@@ -57,6 +63,7 @@ Status OutputTransaction::stage(const std::string& path, const FileWriter& write
                                           "': it is a folder. Give a file name (e.g. '" +
                                           (target / "mesh.vtu").string() + "')."};
   }
+  if (status.isOk() && canceled()) status = canceledStatus();
   const std::string tmp = siblingName(target, "tmp").string();
   if (status.isOk()) {
     try {
@@ -79,6 +86,7 @@ Status OutputTransaction::stage(const std::string& path, const FileWriter& write
 }
 
 Status OutputTransaction::commit() {
+  if (canceled()) return canceledStatus();
   if (failed_)
     return {ErrorCode::WriteFailed, "Not writing any output: another output of this run failed."};
   std::error_code ec;
@@ -89,6 +97,10 @@ Status OutputTransaction::commit() {
   Status status;
   for (size_t i = 0; i < staged_.size() && status.isOk(); ++i) {
     const Staged& s = staged_[i];
+    if (canceled()) {  // a signal before the last rename: roll back
+      status = canceledStatus();
+      break;
+    }
     if (fs::is_regular_file(s.path, ec)) {
       const fs::path backup = siblingName(s.path, "bak");
       fs::create_hard_link(s.path, backup, ec);
@@ -122,6 +134,35 @@ Status writeAtomically(const std::string& path, const FileWriter& writer) {
   OutputTransaction t;
   if (Status s = t.stage(path, writer); !s) return s;
   return t.commit();
+}
+
+long temporaryFileOwner(const std::string& fileName) {
+  static const std::regex pattern(R"(^\..+\.femesher-(tmp|bak)-([0-9]{1,9})-[0-9]+(\.[a-z0-9]+){0,2}$)");
+  std::smatch m;
+  if (!std::regex_match(fileName, m, pattern)) return 0;
+  return std::stol(m[2].str());
+}
+
+std::vector<std::string> removeStaleTemporaries(const std::vector<std::string>& outputs) {
+  std::set<fs::path> folders;
+  for (const auto& o : outputs)
+    if (!o.empty()) folders.insert(folderOf(fs::path(o)));
+  std::vector<std::string> removed;
+  for (const auto& dir : folders) {
+    std::error_code ec;
+    std::vector<std::pair<fs::path, long>> candidates;  // listed first, removed after
+    for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+      const long pid = temporaryFileOwner(it->path().filename().string());
+      std::error_code fec;
+      if (pid > 0 && pid != long(::getpid()) && fs::is_regular_file(it->symlink_status(fec)))
+        candidates.emplace_back(it->path(), pid);  // no links, folders, ...
+    }
+    for (const auto& [path, pid] : candidates) {
+      if (::kill(pid_t(pid), 0) == 0 || errno != ESRCH) continue;  // alive (or not ours to see)
+      if (fs::remove(path, ec)) removed.push_back(path.string());
+    }
+  }
+  return removed;
 }
 
 Status checkDistinctOutputs(const std::vector<std::string>& paths) {

@@ -9,6 +9,9 @@
 
 #include <poll.h>
 #include <signal.h>
+#ifdef __linux__
+#include <sys/prctl.h>
+#endif
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -140,6 +143,17 @@ struct JobResult {
   TetgenOutput out;
 };
 
+/// Child side, right after fork(): a worker must not outlive the run that forked it (a parent
+/// killed by SIGKILL cannot kill its workers). Linux: SIGKILL when the forking thread ends
+/// (PR_SET_PDEATHSIG), then, as the parent may have died before that was set, leave at once if
+/// it already has (the child was reparented).
+void dieWithParent(pid_t parent) {
+#ifdef __linux__
+  ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+#endif
+  if (::getppid() != parent) ::_exit(4);
+}
+
 /// Child side: mesh, stream the result through `fd`, leave without running any exit handler.
 [[noreturn]] void runChild(const TetgenInput& input, const std::string& switches, int fd) {
   TetgenOutput r;
@@ -243,8 +257,10 @@ std::vector<JobResult> runTetgenJobs(const std::vector<TetgenInput>& inputs,
       int fds[2];
       pid_t pid = -1;
       if (::pipe(fds) == 0) {
+        const pid_t parent = ::getpid();
         pid = ::fork();
         if (pid == 0) {
+          dieWithParent(parent);
           ::close(fds[0]);
           runChild(inputs[j], switches, fds[1]);
         }
