@@ -30,6 +30,10 @@ ap.add_argument("--set", action="append", default=[])
 ap.add_argument("--json")
 args = ap.parse_args()
 femesher = os.path.abspath(os.path.join(args.build, "bin", "femesher"))
+# The binary's RUNPATH names the build tree it was linked in: a copy of a build (a frozen binary
+# next to its own lib/) must load its own FEMesher library, not the one being rebuilt there.
+os.environ["LD_LIBRARY_PATH"] = os.pathsep.join(
+    [os.path.abspath(os.path.join(args.build, "lib"))] + [x for x in [os.environ.get("LD_LIBRARY_PATH")] if x])
 out = args.keep or tempfile.mkdtemp(prefix="judge_")
 os.makedirs(out, exist_ok=True)
 names = args.names or (["phantom"] + sorted(os.path.basename(p) for p in glob.glob(os.path.join(args.data, "*"))

@@ -31,6 +31,10 @@ ap.add_argument("--cgal-edge-factor", type=float, help="CGAL facet/edge size in 
 ap.add_argument("--cgal-facet-distance", type=float, help="CGAL facet_distance in voxels")
 args = ap.parse_args()
 femesher = os.path.join(args.build, "bin", "femesher")
+# The binary's RUNPATH names the build tree it was linked in: a copy of a build (a frozen binary
+# next to its own lib/) must load its own FEMesher library, not the one being rebuilt there.
+os.environ["LD_LIBRARY_PATH"] = os.pathsep.join(
+    [os.path.abspath(os.path.join(args.build, "lib"))] + [x for x in [os.environ.get("LD_LIBRARY_PATH")] if x])
 peer = os.path.join(args.build, "bin", "cgal_mesh3_peer")
 tmp = tempfile.mkdtemp(prefix="cgal_compare_")
 inputs = args.inputs
