@@ -139,7 +139,7 @@ void MeshingRun::sizingField() {
   sp.threads = ctx_.threads();
   sp.targetEdgeLength = state_.edgeLength;  // the automatic bounds follow the run's edge length
   auto field = std::make_shared<const SizingField>(
-      computeSizingField(workingLabels(), *state_.medialAxes, sp, ctx_));
+      computeSizingField(workingLabels(), *state_.medialAxes, sp, ctx_, state_.field.get()));
   workingLabels_.reset();
   state_.medialAxes.reset();
   state_.sizingField = field;

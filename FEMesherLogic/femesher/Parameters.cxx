@@ -80,6 +80,13 @@ const std::vector<Binding>& bindings() {
          "nearest medial axis). Smaller = more detail in thin and curved parts.", false},
         [](MeshingParameters& p, double x) { p.sizing.scale = x; },
         [](const MeshingParameters& p) { return p.sizing.scale; });
+    add({"curvature_distance", "double", "voxels", "", 0, 10, "Curvature sizing",
+         "Adaptive sizing: where an interface bends, the edge length is lowered until a "
+         "triangle's centroid lies within this distance of the smooth interface (the curvature "
+         "is probed with chords of the candidate length). 0 = sizes from the local feature size "
+         "alone.", true},
+        [](MeshingParameters& p, double x) { p.sizing.curvatureDistance = x; },
+        [](const MeshingParameters& p) { return p.sizing.curvatureDistance; });
     add({"h_min", "double", "mm", "", 0, 1e6, "Smallest element",
          "Adaptive sizing: lower bound of the edge length in mm (0 = half the uniform edge length).",
          true},

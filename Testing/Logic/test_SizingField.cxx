@@ -3,10 +3,13 @@
 #include <femesher/RunContext.h>
 #include <femesher/Status.h>
 #include <femesher/Types.h>
+#include <femesher/stages/IndicatorFunctions.h>
+#include <femesher/stages/LabelPreprocess.h>
 #include <femesher/stages/SizingField.h>
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -185,4 +188,93 @@ TEST(SizingField, AutomaticBoundsFollowTheUniformEdgeLength) {
   EXPECT_DOUBLE_EQ(hMin, hMax);
   const SizingField f = computeSizingField(vol, p, ctx);
   EXPECT_DOUBLE_EQ(f.hMin, f.hMax);
+}
+
+namespace {
+
+/// The sizing field of a run on `vol` (the working grid, as MeshingRun computes it) with or
+/// without the curvature term (`curvatureDistance` in voxels).
+SizingField runSizing(const LabelVolume& vol, double curvatureDistance, PreprocessedVolume& pv) {
+  RunContext ctx;
+  pv = preprocessLabels(vol, {}, ctx);
+  const IndicatorField field = computeIndicatorFunctions(pv, {}, ctx);
+  LabelVolume work;
+  work.dims = pv.dims;
+  work.spacing = pv.spacing;
+  work.labels.assign(pv.labels.begin(), pv.labels.end());
+  SizingParameters p;
+  p.scale = 5;
+  p.hMin = 0.5;
+  p.hMax = 20;
+  p.curvatureDistance = curvatureDistance;
+  const LabelMedialAxes axes = computeAllMedialAxes(work, medialAxisParameters(p), ctx);
+  return computeSizingField(work, axes, p, ctx, &field);
+}
+
+/// h at the voxels of label `inside` (compact) with a 6-neighbour of another label, away from
+/// the working grid's border by `margin` voxels.
+std::vector<double> interfaceSizes(const SizingField& f, const PreprocessedVolume& pv, int margin) {
+  std::vector<double> out;
+  const auto& d = pv.dims;
+  for (int k = margin; k < d[2] - margin; ++k)
+    for (int j = margin; j < d[1] - margin; ++j)
+      for (int i = margin; i < d[0] - margin; ++i) {
+        const auto l = pv.labels[pv.index(i, j, k)];
+        if (l == 0) continue;
+        bool iface = false;
+        static const int n6[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+        for (const auto& o : n6) iface |= pv.labels[pv.index(i + o[0], j + o[1], k + o[2])] != l;
+        if (iface) out.push_back(f.h[pv.index(i, j, k)]);
+      }
+  return out;
+}
+
+double medianOf(std::vector<double> v) {
+  std::nth_element(v.begin(), v.begin() + long(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+
+// Curvature term: on a ball of radius R a triangle of edge h has its centroid h^2 / (6R) off the
+// sphere, so with the term on, the surface size is sqrt(6 d R) where the local feature size alone
+// would allow far more; on a flat interface it changes nothing.
+TEST(SizingField, CurvatureTermSizesABallBySqrtSixDRAndLeavesAPlaneAlone) {
+  const double R = 12, d = 0.25;  // mm (1 mm voxels), voxels
+  LabelVolume ball;
+  ball.dims = {{56, 56, 56}};
+  ball.spacing = {{1, 1, 1}};
+  ball.labels.assign(ball.voxelCount(), 0);
+  for (int k = 0; k < 56; ++k)
+    for (int j = 0; j < 56; ++j)
+      for (int i = 0; i < 56; ++i) {
+        const double x = i - 27.5, y = j - 27.5, z = k - 27.5;
+        if (x * x + y * y + z * z <= R * R) ball.labels[ball.index(i, j, k)] = 1;
+      }
+  PreprocessedVolume pv;
+  const double plain = medianOf(interfaceSizes(runSizing(ball, 0, pv), pv, 1));
+  const double curved = medianOf(interfaceSizes(runSizing(ball, d, pv), pv, 1));
+  const double finer = medianOf(interfaceSizes(runSizing(ball, d / 4, pv), pv, 1));
+  const double expected = std::sqrt(6 * d * R);  // 4.24 mm
+  EXPECT_GT(plain, 1.3 * expected) << "the local feature size alone allows much more on this ball";
+  // The voxel bumps of the smooth interface add some curvature and the gradation limit lowers
+  // the sizes next to smaller ones (without it the median is 0.85 x expected).
+  EXPECT_GT(curved, 0.65 * expected);
+  EXPECT_LT(curved, 1.1 * expected);
+  // A quarter of the distance, half the size.
+  EXPECT_GT(curved / finer, 1.7);
+  EXPECT_LT(curved / finer, 2.3);
+
+  // Two half-spaces meeting on the plane z = 20: flat, so the term leaves every size alone.
+  LabelVolume slab;
+  slab.dims = {{40, 40, 40}};
+  slab.spacing = {{1, 1, 1}};
+  slab.labels.assign(slab.voxelCount(), 1);
+  for (size_t v = 0; v < slab.labels.size(); ++v)
+    if (v / (40 * 40) >= 20) slab.labels[v] = 2;
+  const std::vector<double> flat0 = interfaceSizes(runSizing(slab, 0, pv), pv, 1);
+  const std::vector<double> flat1 = interfaceSizes(runSizing(slab, d, pv), pv, 1);
+  ASSERT_EQ(flat0.size(), flat1.size());
+  ASSERT_FALSE(flat0.empty());
+  for (size_t q = 0; q < flat0.size(); ++q) EXPECT_NEAR(flat1[q], flat0[q], 1e-6 * flat0[q]) << q;
 }

@@ -3,6 +3,8 @@
 
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
+#include <femesher/VecMath.h>
+#include <femesher/stages/IndicatorFunctions.h>
 
 #include <algorithm>
 #include <cmath>
@@ -43,6 +45,130 @@ Grid3 gridOf(const LabelVolume& volume) {
   g.dims = volume.dims;
   g.spacing = volume.spacing;
   return g;
+}
+
+
+/// Height (mm, along `n`) of the smooth interface f_a = f_b above the grid-mm point `p`, by
+/// Newton steps on g = f_a - f_b along n; false when the interface is not within `reach` mm.
+bool interfaceHeight(const IndicatorField& f, int a, int b, const Vec3& sp, const Vec3& p,
+                     const Vec3& n, double reach, double& z) {
+  z = 0;
+  for (int it = 0; it < 4; ++it) {
+    const Vec3 q = add(p, scale(n, z));
+    const Vec3 l{{q[0] / sp[0], q[1] / sp[1], q[2] / sp[2]}};
+    const double g = f.eval(a, l) - f.eval(b, l);
+    const Vec3 ga = f.gradient(a, l), gb = f.gradient(b, l);
+    double dg = 0;
+    for (int k = 0; k < 3; ++k) dg += (ga[k] - gb[k]) / sp[k] * n[k];
+    if (!(dg > 1e-6)) return false;
+    z -= g / dg;
+    if (!(std::fabs(z) < reach)) return false;
+  }
+  return true;
+}
+
+/// The largest principal curvature (1/mm) of the smooth interface between a and b at grid-mm
+/// point `x0` on it: chords of half-length r in four tangent directions give the normal
+/// curvature in each (sagitta sum / r²), and the curvature tensor is their least-squares fit
+/// (which averages out some of the voxel bumps a single direction would read as curvature).
+/// Directions where a probe does not find the interface within r, or comes within r of the
+/// input's box (grid mm, `box`), are skipped; with fewer than four, the largest of the others.
+double probeCurvature(const IndicatorField& f, int a, int b, const Vec3& sp, const Vec3& x0,
+                      const Vec3& n, double r, const std::array<Vec3, 2>& box) {
+  auto inBox = [&](const Vec3& p) {
+    for (int c = 0; c < 3; ++c)
+      if (p[c] - r < box[0][c] || p[c] + r > box[1][c]) return false;
+    return true;
+  };
+  const Vec3 helper = std::fabs(n[0]) < 0.6 ? Vec3{{1, 0, 0}} : Vec3{{0, 1, 0}};
+  Vec3 t1 = cross(n, helper);
+  t1 = scale(t1, 1 / norm(t1));
+  const Vec3 t2 = cross(n, t1);
+  static const double c[4] = {1, 0.70710678118654752, 0, -0.70710678118654752};
+  static const double s[4] = {0, 0.70710678118654752, 1, 0.70710678118654752};
+  double k[4];
+  int found = 0;
+  double largest = 0;
+  for (int d = 0; d < 4; ++d) {
+    const Vec3 dir = add(scale(t1, c[d]), scale(t2, s[d]));
+    const Vec3 pp = add(x0, scale(dir, r)), pm = sub(x0, scale(dir, r));
+    double zp = 0, zm = 0;
+    k[d] = std::numeric_limits<double>::quiet_NaN();
+    if (!inBox(pp) || !inBox(pm) || !interfaceHeight(f, a, b, sp, pp, n, r, zp) ||
+        !interfaceHeight(f, a, b, sp, pm, n, r, zm))
+      continue;  // another material, the band's end or the box is there
+    k[d] = (zp + zm) / (r * r);
+    largest = std::max(largest, std::fabs(k[d]));
+    ++found;
+  }
+  if (found < 4) return largest;
+  // κ(θ) = A cos²θ + 2B sinθ cosθ + E sin²θ fitted to θ = 0, 45, 90, 135°.
+  const double t = (k[1] + k[3] - k[0] - k[2]) / 4;
+  const double A = k[0] + t, E = k[2] + t, B = (k[1] - k[3]) / 2;
+  const double mean = (A + E) / 2, dev = std::sqrt((A - E) * (A - E) / 4 + B * B);
+  return std::max(std::fabs(mean + dev), std::fabs(mean - dev));
+}
+
+/// Lowers h0 at interface voxels where the smooth interface bends: a triangle of edge h on a
+/// surface of curvature κ has its centroid κh²/6 off the surface, so h ≤ sqrt(6 d / κ).
+void limitByCurvature(const LabelVolume& volume, const IndicatorField& f, double d,
+                      SizingField& field, int threads, RunContext& ctx) {
+  const Grid3& grid = field.grid;
+  const Vec3 sp = grid.spacing;
+  const double smin = std::min({sp[0], sp[1], sp[2]});
+  const int nx = grid.dims[0], ny = grid.dims[1], nz = grid.dims[2];
+  // The input's box in grid mm (probes beyond it would read the box, not the interface).
+  const WorkingGrid& wg = f.volume();
+  std::array<Vec3, 2> box;
+  for (int c = 0; c < 3; ++c) {
+    const bool known = wg.inputDims[c] > 0;
+    box[0][c] = known ? (-wg.offset[c] - 0.5) * sp[c] : -1e300;
+    box[1][c] = known ? (wg.inputDims[c] - wg.offset[c] - 0.5) * sp[c] : 1e300;
+  }
+  parallelFor(size_t(nz), threads, [&](size_t b0, size_t e0, int) {
+    ctx.checkCancel();
+    for (size_t kk = b0; kk < e0; ++kk) {
+      const int k = int(kk);
+      for (int j = 0; j < ny; ++j)
+        for (int i = 0; i < nx; ++i) {
+          const size_t v = grid.index(i, j, k);
+          const double h0 = field.h[v];
+          const int32_t a = volume.labels[v];
+          int32_t b = a;
+          static const int dn[6][3] = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0},
+                                       {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+          for (int q = 0; q < 6 && b == a; ++q) {
+            const int ii = i + dn[q][0], jj = j + dn[q][1], kc = k + dn[q][2];
+            if (ii < 0 || jj < 0 || kc < 0 || ii >= nx || jj >= ny || kc >= nz) continue;
+            b = volume.labels[grid.index(ii, jj, kc)];
+          }
+          if (b == a || a >= f.labelCount() || b >= f.labelCount()) continue;
+          // onto the interface from the voxel centre, along the gradient of g
+          Vec3 x{{i * sp[0], j * sp[1], k * sp[2]}};
+          Vec3 n{{0, 0, 0}};
+          bool on = false;
+          for (int it = 0; it < 6 && !on; ++it) {
+            const Vec3 l{{x[0] / sp[0], x[1] / sp[1], x[2] / sp[2]}};
+            const double g = f.eval(a, l) - f.eval(b, l);
+            const Vec3 ga = f.gradient(a, l), gb = f.gradient(b, l);
+            for (int c = 0; c < 3; ++c) n[c] = (ga[c] - gb[c]) / sp[c];
+            const double len = norm(n);
+            if (!(len > 1e-6)) break;
+            n = scale(n, 1 / len);
+            x = sub(x, scale(n, g / len));
+            on = std::fabs(g / len) < 1e-3 * sp[0];
+          }
+          if (!on) continue;
+          // Chords of half the candidate size, but at least two voxels (the smooth interface of
+          // a voxel map has bumps of a fraction of a voxel, which shorter chords would read as
+          // curvature) and at most five (longer chords overstate a small sphere's curvature).
+          const double r = std::clamp(0.5 * h0, 2 * smin, 5 * smin);
+          const double kappa = probeCurvature(f, a, b, sp, x, n, r, box);
+          const double h = kappa > 0 ? std::sqrt(6 * d / kappa) : h0;
+          if (h < h0) field.h[v] = float(std::max(h, field.hMin));
+        }
+    }
+  });
 }
 
 }  // namespace
@@ -190,7 +316,8 @@ SizingField computeSizingField(const LabelVolume& volume, const SizingParameters
 }
 
 SizingField computeSizingField(const LabelVolume& volume, const LabelMedialAxes& axes,
-                               const SizingParameters& params, RunContext& ctx) {
+                               const SizingParameters& params, RunContext& ctx,
+                               const IndicatorField* surfaces) {
   SizingField field;
   field.grid = gridOf(volume);
   const Grid3& grid = field.grid;
@@ -239,6 +366,9 @@ SizingField computeSizingField(const LabelVolume& volume, const LabelMedialAxes&
     }
   });
   for (size_t c : interfaceCount) field.interfaceVoxels += c;
+  if (surfaces && params.curvatureDistance > 0)
+    limitByCurvature(volume, *surfaces, params.curvatureDistance * std::min({grid.spacing[0], grid.spacing[1], grid.spacing[2]}), field,
+                     params.threads, ctx);
   ctx.progress(0.8);
   limitGradation(grid, field.h, params.gradation, &ctx);
   ctx.progress(1.0);

@@ -15,8 +15,13 @@
 ///    nothing changes: the result is the largest field below h0 that satisfies the bound, i.e.
 ///    h(x) = min_y h0(y) + L·d26(x, y) with d26 the shortest 26-neighbour path length (≥ the
 ///    Euclidean distance, at most ~8 % more, which only makes h smaller).
-/// The result lies in [hMin, hMax]. No curvature term (BioMesh3D disables its own too): thin and
-/// strongly curved parts are caught by the medial axis, which runs close to such surfaces.
+/// 3b. With `curvatureDistance` d > 0 (and the run's indicator functions), h0 at an interface
+///    voxel is also at most sqrt(6 d / κ): κ is the largest principal curvature of the smooth
+///    interface there, a least-squares fit of the normal curvatures that chords of 2–5 voxels in
+///    four tangent directions measure; a triangle of edge h then has its centroid within about d
+///    of the interface. Off by default (the medial axis already runs close to thin and strongly
+///    curved parts; BioMesh3D disables its own curvature term too).
+/// The result lies in [hMin, hMax].
 ///
 /// Frame: the field lives on the label map's grid in the CANONICAL frame (mm, spacing ⊙ index),
 /// x fastest, so a writer can store `h` with the input's geometry (origin, direction).
@@ -32,6 +37,7 @@
 namespace femesher {
 
 class RunContext;
+class IndicatorField;
 
 enum class SizingMode {
   Adaptive,  ///< h from the Integer Medial Axis local feature size (this stage)
@@ -49,6 +55,10 @@ struct SizingParameters {
   double scale = 1.25;     ///< ε: h = ε × lfs ("detail" knob; smaller = more detail)
   double hMin = 0;         ///< mm; 0 = auto: half the uniform edge length
   double hMax = 0;         ///< mm; 0 = auto: 2.5 × the uniform edge length
+  /// Voxels: where the smooth interface bends, h0 ≤ sqrt(6 d / κ) so that a triangle's centroid
+  /// stays within d of it (κ probed with chords of the candidate size; needs the indicator
+  /// functions). 0 = no curvature term.
+  double curvatureDistance = 0;
   double gradation = 0.4;  ///< L > 0: h grows at most L mm per mm (about 0.2–0.5)
   /// Hand the field to TetGen as point metrics so the interior follows it too (more tets); off:
   /// the interior is graded from the surface by TetGen's quality bound.
@@ -101,7 +111,9 @@ SizingField computeSizingField(const LabelVolume& volume, const SizingParameters
                                RunContext& ctx);
 
 /// Same, from precomputed medial axes (e.g. to write both outputs of one run).
+/// With `surfaces` (the run's indicator functions on the same grid), the curvature term applies.
 SizingField computeSizingField(const LabelVolume& volume, const LabelMedialAxes& axes,
-                               const SizingParameters& params, RunContext& ctx);
+                               const SizingParameters& params, RunContext& ctx,
+                               const IndicatorField* surfaces = nullptr);
 
 }  // namespace femesher
