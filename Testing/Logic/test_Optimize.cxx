@@ -921,3 +921,111 @@ TEST(Optimize, CoarsensTheInteriorWithinTheSizeAndQualityBoundsAndKeepsEveryInte
   EXPECT_EQ(optimizeTetMesh(off.p, off.t, off.labels, op, ctx).coarsenedVertices, 0u);
   EXPECT_EQ(off.t, start.t);
 }
+
+namespace {
+
+/// Material 1 in the cells x < 2 of the Kuhn grid on [0, 4]^3 (the background beyond the plane
+/// x = 2, the box [0, 4]^3), with the interface vertex (2, 2, 1) lowered to (2, 2, h): the tet
+/// (1,1,0) (2,1,0) (2,2,0) (2,2,h) is then a flat cap with one face on the box plane z = 0 and
+/// one on the interface x = 2.
+struct BoxCapMesh {
+  std::vector<Vec3> p;
+  Tets t;
+  std::vector<int32_t> labels;
+  int32_t apex = -1;
+  explicit BoxCapMesh(double h) {
+    const int n = 4;
+    auto id = [n](int i, int j, int k) { return int32_t(i + (n + 1) * (j + (n + 1) * k)); };
+    for (int k = 0; k <= n; ++k)
+      for (int j = 0; j <= n; ++j)
+        for (int i = 0; i <= n; ++i) p.push_back({double(i), double(j), double(k)});
+    apex = id(2, 2, 1);
+    p[size_t(apex)][2] = h;
+    const int perm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+    for (int k = 0; k < n; ++k)
+      for (int j = 0; j < n; ++j)
+        for (int i = 0; i < 2; ++i)
+          for (const auto& a : perm) {
+            int c[3] = {i, j, k};
+            std::array<int32_t, 4> T;
+            T[0] = id(c[0], c[1], c[2]);
+            for (int s = 0; s < 3; ++s) {
+              ++c[a[s]];
+              T[size_t(s + 1)] = id(c[0], c[1], c[2]);
+            }
+            orientPositively(p, T);
+            t.push_back(T);
+            labels.push_back(1);
+          }
+  }
+  /// Whether a tet has exactly these corners (by position: the optimiser renumbers vertices).
+  bool hasTet(std::array<Vec3, 4> q) const {
+    std::sort(q.begin(), q.end());
+    for (const auto& T : t) {
+      std::array<Vec3, 4> c{{p[size_t(T[0])], p[size_t(T[1])], p[size_t(T[2])], p[size_t(T[3])]}};
+      std::sort(c.begin(), c.end());
+      if (c == q) return true;
+    }
+    return false;
+  }
+};
+
+/// Material 1 fills {x <= 2} within the box [0, 4]^3: its interface with the background is the
+/// nearest point of that region's boundary (the plane x = 2 or a box face), as the run's clipped
+/// indicator functions make it.
+OptimizeInterfaces boxCapInterfaces(double facetDistance) {
+  OptimizeInterfaces in;
+  in.projectOntoInterface = [](int a, int b, Vec3& x) {
+    if (a != 0 || b != 1) return false;
+    const double d[6] = {std::fabs(x[0] - 2), x[0], x[1], 4 - x[1], x[2], 4 - x[2]};
+    const int m = int(std::min_element(d, d + 6) - d);
+    if (m == 0) x[0] = 2;
+    if (m == 1) x[0] = 0;
+    if (m == 2) x[1] = 0;
+    if (m == 3) x[1] = 4;
+    if (m == 4) x[2] = 0;
+    if (m == 5) x[2] = 4;
+    return true;
+  };
+  in.hasBox = true;
+  in.boxLo = {0, 0, 0};
+  in.boxHi = {4, 4, 4};
+  in.boxTolerance = 1e-9;
+  in.facetDistance = facetDistance;
+  return in;
+}
+
+}  // namespace
+
+// A flat cap on the volume's box (one face on a box plane, one on the interface with the
+// background) is peeled when its apex is within the facet distance of the box plane, and kept
+// when it is not: the box stays flat to the facet distance.
+TEST(Optimize, FlatCapOnTheBoxIsPeeledWithinTheFacetDistanceOfTheBoxPlane) {
+  const double h = 0.08;
+  OptimizeParameters op;
+  op.targetMinDihedral = 30;
+  op.peelDistance = 1e-4;  // far thinner than the cap: only the facet-distance rule can peel it
+  op.moveInterfaces = false;  // the apex would otherwise simply move back up its interface
+  op.smooth = false;          // or slide up its flat outer patch
+  op.insertVertices = false;
+  op.splitEdges = false;
+  op.collapseEdges = false;
+  RunContext ctx;
+  const std::array<Vec3, 4> cap{{{1, 1, 0}, {2, 1, 0}, {2, 2, 0}, {2, 2, h}}};
+  for (double facetDistance : {0.1, 0.05}) {
+    BoxCapMesh mesh(h);
+    ASSERT_TRUE(mesh.hasTet(cap));
+    const double before = labelVolumes(mesh.p, mesh.t, mesh.labels).at(1);
+    const auto r = optimizeTetMesh(mesh.p, mesh.t, mesh.labels, op, boxCapInterfaces(facetDistance), ctx);
+    const double after = labelVolumes(mesh.p, mesh.t, mesh.labels).at(1);
+    for (const auto& [f, held] : faceLabels(mesh.t, mesh.labels)) EXPECT_LE(held.size(), 2u);
+    if (facetDistance > h) {
+      EXPECT_FALSE(mesh.hasTet(cap)) << "the cap's apex is " << h << " from the box plane";
+      EXPECT_GE(r.peeledTets, 1u);
+      EXPECT_LT(before - after, 0.1) << "only flat tets go";
+      EXPECT_GE(before - after, 0.0);
+    } else {
+      EXPECT_TRUE(mesh.hasTet(cap)) << "an apex beyond the facet distance keeps the box face";
+    }
+  }
+}
