@@ -61,6 +61,9 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
   PipelineResult result;
   const Status status = runGuarded([&] {
     MeshingRun run(input, params, ctx);
+    // Before the first stage: warn when the run may not fit in memory (MemoryEstimate.h).
+    run.state().memory = estimateRunMemory(input, params);
+    if (const std::string w = memoryWarning(run.state().memory); !w.empty()) ctx.warn(w);
     run.runThrough(StageId::Fidelity);
     result = collect(run, ctx, start, options.keepCurvingData);
   });
