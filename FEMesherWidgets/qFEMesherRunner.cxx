@@ -71,7 +71,10 @@ bool qFEMesherRunner::start(std::shared_ptr<const femesher::LabelVolume> volume,
     int code = 0;
     QString message;
     try {
-      auto r = femesher::runPipeline(*volume, p, *ctx);
+      // The panel can switch the element order to 2 after a run: keep what curving needs.
+      femesher::PipelineOptions options;
+      options.keepCurvingData = true;
+      auto r = femesher::runPipeline(*volume, p, *ctx, options);
       if (r) out = std::make_shared<femesher::PipelineResult>(std::move(r).value());
       else {
         code = int(r.status().code());

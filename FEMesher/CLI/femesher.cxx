@@ -4,6 +4,7 @@
 #include "SlicerXml.h"
 
 #include <femesher/Parameters.h>
+#include <femesher/HipPhantom.h>
 #include <femesher/Phantom.h>
 #include <femesher/Pipeline.h>
 #include <femesher/RunReport.h>
@@ -558,10 +559,24 @@ int runQuality(const std::string& meshPath, const std::string& labelsPath,
   return 0;
 }
 
-int runPhantom(const std::string& output, double voxelSize) {
-  PhantomOptions po;
-  if (voxelSize > 0) po.voxelSize = voxelSize;
-  const LabelVolume v = makePhantom(po);
+int runPhantom(const std::string& output, double voxelSize, bool hip, const CLI::Option* scale,
+               double scaleValue) {
+  if (!hip && scale->count() > 0)
+    return fail({ErrorCode::InvalidArgument, "--scale is for the hip phantom: add --hip (the "
+                                             "femur phantom takes --voxel-size)"});
+  if (hip && voxelSize > 0)
+    return fail({ErrorCode::InvalidArgument, "--voxel-size is for the femur phantom: the hip "
+                                             "phantom takes --scale (0.5: 256 x 256 x 200 voxels)"});
+  LabelVolume v;
+  if (hip) {
+    HipPhantomOptions ho;
+    if (scale->count() > 0) ho.scale = scaleValue;
+    v = makeHipPhantom(ho);
+  } else {
+    PhantomOptions po;
+    if (voxelSize > 0) po.voxelSize = voxelSize;
+    v = makePhantom(po);
+  }
   if (Status s = writeLabelMap(v, output); !s) return fail(s);
   std::fprintf(stderr, "wrote %s (%d x %d x %d voxels, %zu materials)\n", output.c_str(), v.dims[0],
                v.dims[1], v.dims[2], v.materials.size());
@@ -794,10 +809,20 @@ int main(int argc, char** argv) {
   info->add_flag("--json", infoJson, "JSON output");
 
   std::string phantomOut;
-  double phantomVoxel = 0;
-  auto* phantom = app.add_subcommand("phantom", "Write the built-in hip phantom label map");
+  double phantomVoxel = 0, phantomScale = 0;
+  bool phantomHip = false;
+  auto* phantom = app.add_subcommand(
+      "phantom", "Write a built-in label map: the 5-material proximal femur (64 x 64 x 96 voxels), "
+                 "or with --hip a clinical-size CT of both hips (512 x 512 x 400, 10 materials)");
   phantom->add_option("output", phantomOut, "Output label map (.nrrd .nii.gz .mha)")->required();
-  phantom->add_option("--voxel-size", phantomVoxel, "Voxel size in mm (default 1)");
+  phantom->add_option("--voxel-size", phantomVoxel, "Femur phantom: voxel size in mm (default 1)");
+  phantom->add_flag("--hip", phantomHip,
+                    "The hip phantom: 512 x 512 x 400 voxels of 0.7 x 0.7 x 1 mm, 10 materials "
+                    "(pelvis and femur cortical and trabecular bone, marrow, cartilage, an implant "
+                    "with stem and cup, muscle, fat, a 1-2 voxel subchondral plate)");
+  auto* phantomScaleOpt = phantom->add_option("--scale", phantomScale,
+                      "Hip phantom: the same anatomy on round(512 s) x round(512 s) x round(400 s) "
+                      "voxels, s in (0.05, 2] (default 1)");
 
   std::string maInput, maOutput, maLabel, maPrune;
   double maGamma = -1, maGammaConstant = -1;
@@ -850,7 +875,7 @@ int main(int argc, char** argv) {
     if (*optimizeCmd) return runOptimize(optMesh, optLabels, optOpts);
     if (*quality) return runQuality(qualityMesh, qualityLabels, qualityRaster, qualityJson);
     if (*info) return runInfo(infoInput, infoNames, infoJson);
-    if (*phantom) return runPhantom(phantomOut, phantomVoxel);
+    if (*phantom) return runPhantom(phantomOut, phantomVoxel, phantomHip, phantomScaleOpt, phantomScale);
     if (*medial) return runMedialAxis(maInput, maOutput, maLabel, maPrune, maGamma, maGammaConstant);
     if (*sizingCmd) return runSizing(szInput, szOutput, szOpts);
     if (*params && paramsJson) {

@@ -12,6 +12,7 @@
 /// reported to the RunContext (progress, cancel). Errors are thrown as femesher::Error.
 
 #include <femesher/DeferredCurving.h>
+#include <femesher/MemoryEstimate.h>
 #include <femesher/MeshCheck.h>
 #include <femesher/Parameters.h>
 #include <femesher/QuadraticCurving.h>
@@ -78,6 +79,7 @@ struct MeshingState {
   std::shared_ptr<const MidEdgePositions> midEdgeNodes;
   QuadraticCurvingResult quadratic;
   std::vector<StageTiming> timings;             ///< wall seconds per stage run, in run order
+  MemoryEstimate memory;  ///< runPipeline's estimate before the run (empty for other callers)
 };
 
 /// The stages `params` runs, in order, with their progress weights (for RunContext).

@@ -25,7 +25,7 @@ namespace {
 
 /// The result of a run that went through Fidelity (or Quality when fidelity is off).
 PipelineResult collect(MeshingRun& run, RunContext& ctx,
-                       std::chrono::steady_clock::time_point start) {
+                       std::chrono::steady_clock::time_point start, bool keepCurvingData) {
   PipelineResult result;
   run.prepareExport();
   MeshingState& s = run.state();
@@ -48,20 +48,24 @@ PipelineResult collect(MeshingRun& run, RunContext& ctx,
   result.quality = std::move(s.quality);
   result.fidelity = std::move(s.fidelity);
   // Last: it moves the grid and the indicator functions out of the run.
-  if (run.parameters().elementOrder != 2) result.deferredCurving = run.keepForCurving();
+  if (keepCurvingData && run.parameters().elementOrder != 2)
+    result.deferredCurving = run.keepForCurving();
   return result;
 }
 
 }  // namespace
 
 Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParameters& params,
-                                   RunContext& ctx) {
+                                   RunContext& ctx, const PipelineOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   PipelineResult result;
   const Status status = runGuarded([&] {
     MeshingRun run(input, params, ctx);
+    // Before the first stage: warn when the run may not fit in memory (MemoryEstimate.h).
+    run.state().memory = estimateRunMemory(input, params);
+    if (const std::string w = memoryWarning(run.state().memory); !w.empty()) ctx.warn(w);
     run.runThrough(StageId::Fidelity);
-    result = collect(run, ctx, start);
+    result = collect(run, ctx, start, options.keepCurvingData);
   });
   if (!status) return status;
   return result;
@@ -76,7 +80,7 @@ Result<PipelineResult> optimizeMesh(const LabelVolume& labels, const TetMesh& me
     run.runThrough(StageId::SizingField);  // the sizing field is what Optimize coarsens to
     run.adoptVolumeMesh(mesh);
     run.runThrough(StageId::Fidelity);
-    result = collect(run, ctx, start);
+    result = collect(run, ctx, start, false);  // the CLI's optimize: nothing switches its order
   });
   if (!status) return status;
   return result;

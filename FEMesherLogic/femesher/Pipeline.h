@@ -33,10 +33,11 @@ struct PipelineResult {
   /// With element_order 2: the mid-edge nodes curved onto the smooth interfaces (physical LPS, by
   /// tetEdgeKey of `mesh`'s vertices): what ExportOptions::midEdgeNodes takes. Null otherwise.
   std::shared_ptr<const MidEdgePositions> midEdgeNodes;
-  /// With element_order 1: what curving those nodes needs, kept from the run, so that a host
-  /// switched to order 2 afterwards exports the nodes a run at order 2 would have curved
-  /// (`deferredCurving->midEdgeNodes(mesh, ctx)`; DeferredCurving.h). Null at order 2 (the nodes
-  /// are in `midEdgeNodes`) and for a run without indicator functions.
+  /// With element_order 1 and PipelineOptions::keepCurvingData: what curving those nodes needs,
+  /// kept from the run, so that a host switched to order 2 afterwards exports the nodes a run at
+  /// order 2 would have curved (`deferredCurving->midEdgeNodes(mesh, ctx)`; DeferredCurving.h).
+  /// Null without that option, at order 2 (the nodes are in `midEdgeNodes`) and for a run
+  /// without indicator functions.
   std::shared_ptr<const DeferredCurving> deferredCurving;
   std::vector<StageTiming> timings; ///< wall seconds per stage, in run order
   std::vector<std::string> warnings;
@@ -52,9 +53,19 @@ struct PipelineResult {
   std::string reportJson;           ///< the full run report (see RunReport.h)
 };
 
+/// What a host asks of a run besides its parameters (nothing a user sets).
+struct PipelineOptions {
+  /// With element_order 1, keep what curving the mid-edge nodes needs in
+  /// PipelineResult::deferredCurving (the indicator functions with their working grid and the
+  /// final mesh in the canonical frame: ~160 MB on the knee) for a host that can switch the
+  /// element order to 2 after the run: the panel sets it. Off, the run frees them when it ends:
+  /// the CLI, where nothing could use them.
+  bool keepCurvingData = false;
+};
+
 /// Run the full pipeline. Canceled -> Status Canceled. Never writes files.
 Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParameters& params,
-                                   RunContext& ctx);
+                                   RunContext& ctx, const PipelineOptions& options = {});
 
 /// Improves an existing labelled tet mesh (physical LPS, user labels; e.g. read by readMesh) with
 /// the Optimize stage, against the smooth interfaces of the label map it was made from, then

@@ -71,6 +71,14 @@ std::string runReportJson(const MeshingRun& run, const std::vector<std::string>&
   for (const auto& t : s.timings) stages.push_back({{"name", t.name}, {"seconds", t.seconds}});
   report["stages"] = stages;
   report["total_seconds"] = totalSeconds;
+  if (s.memory.peakBytes > 0)
+    report["memory_estimate"] = {{"peak_bytes", s.memory.peakBytes},
+                                 {"available_bytes", s.memory.availableBytes},
+                                 {"available_source", s.memory.availableSource},
+                                 {"working_voxels", s.memory.gridVoxels},
+                                 {"materials", s.memory.materials},
+                                 {"interface_faces", s.memory.interfaceFaces},
+                                 {"exceeds_available", s.memory.exceeds()}};
   json counts = json::object();
   for (const auto& [k, v] : run.reportCounts()) counts[k] = v;
   report["counts"] = counts;

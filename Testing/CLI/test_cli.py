@@ -87,6 +87,27 @@ info = json.loads(r.stdout)
 check(len([l for l in info["labels"] if l["id"] != 0]) >= 4, "phantom has >= 4 materials")
 check(info["quadruple_cells"] >= 1, "phantom has a quadruple point")
 
+# The clinical-size hip phantom, at a quarter of its size (128 x 128 x 100 voxels of 2.8 x 2.8 x 4 mm).
+hip = os.path.join(TMP, "hip.nrrd")
+r = run("phantom", "--hip", "--scale", "0.25", hip)
+check(r.returncode == 0 and "128 x 128 x 100 voxels, 10 materials" in r.stderr,
+      "phantom --hip --scale 0.25 writes 128 x 128 x 100 voxels, 10 materials: " + r.stderr.strip())
+r = run("info", hip, "--json")
+info = json.loads(r.stdout) if r.returncode == 0 else {}
+check(info.get("dims") == [128, 128, 100], "hip phantom dims: %s" % info.get("dims"))
+check([round(x, 9) for x in info.get("spacing", [])] == [2.8, 2.8, 4.0],
+      "hip phantom spacing 0.7 x 0.7 x 1 mm at scale 1: %s" % info.get("spacing"))
+names = {l["id"]: l["name"] for l in info.get("labels", [])}
+check(sorted(names) == list(range(11)) and names.get(7) == "implant" and names.get(10) == "subchondral bone plate",
+      "hip phantom labels 0..10 with their names: %s" % names)
+for bad, why in [(["--scale", "0.5"], "--scale without --hip"), (["--hip", "--voxel-size", "2"], "--voxel-size with --hip"),
+                 (["--hip", "--scale", "3"], "--scale 3"), (["--hip", "--scale", "0"], "--scale 0")]:
+    r = run("phantom", *bad, os.path.join(TMP, "bad_hip.nrrd"))
+    check(r.returncode == EXIT["invalid-argument"] and "scale" in r.stderr + r.stdout and
+          not os.path.exists(os.path.join(TMP, "bad_hip.nrrd")), "phantom %s is exit 2" % why)
+r = run("phantom", "--help")
+check("--hip" in r.stdout and "--scale" in r.stdout, "phantom --help lists --hip and --scale")
+
 # --- medial axis and sizing field as images ---------------------------------------------------
 ma = os.path.join(TMP, "phantom_ma.nrrd")
 r = run("medial-axis", phantom, "-o", ma)

@@ -34,8 +34,10 @@ void expectDeferredAsOrderTwo(const std::string& contactPairs) {
   MeshingParameters p2 = p1;
   p2.elementOrder = 2;
   RunContext c1, c2;
-  auto r1 = runPipeline(input, p1, c1);
-  auto r2 = runPipeline(input, p2, c2);
+  PipelineOptions keep;
+  keep.keepCurvingData = true;  // what the panel asks for
+  auto r1 = runPipeline(input, p1, c1, keep);
+  auto r2 = runPipeline(input, p2, c2, keep);
   ASSERT_TRUE(r1.isOk()) << r1.status().message();
   ASSERT_TRUE(r2.isOk()) << r2.status().message();
   ASSERT_FALSE(r1->midEdgeNodes);
@@ -85,3 +87,22 @@ void expectDeferredAsOrderTwo(const std::string& contactPairs) {
 TEST(QuadraticDeferred, OrderOneRunCurvedLaterAsAnOrderTwoRun) { expectDeferredAsOrderTwo(""); }
 
 TEST(QuadraticDeferred, WithAContactPairTheCopiesGetTheirNodes) { expectDeferredAsOrderTwo("4:1"); }
+
+TEST(QuadraticDeferred, KeptOnlyWhenTheHostAsks) {
+  // The CLI's call (default options) keeps nothing: the same mesh, no deferred curving.
+  const LabelVolume input = makePhantom();
+  MeshingParameters p;
+  p.run.computeFidelity = false;
+  RunContext c1, c2;
+  PipelineOptions keep;
+  keep.keepCurvingData = true;
+  auto plain = runPipeline(input, p, c1);
+  auto kept = runPipeline(input, p, c2, keep);
+  ASSERT_TRUE(plain.isOk()) << plain.status().message();
+  ASSERT_TRUE(kept.isOk()) << kept.status().message();
+  EXPECT_FALSE(plain->deferredCurving);
+  EXPECT_FALSE(plain->midEdgeNodes);
+  ASSERT_TRUE(kept->deferredCurving);
+  EXPECT_EQ(plain->mesh.tets, kept->mesh.tets);
+  EXPECT_EQ(plain->mesh.points, kept->mesh.points);
+}

@@ -1,0 +1,55 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+#pragma once
+/// \file MemoryEstimate.h
+/// Before a run: the peak resident memory of the run's process tree (the process and TetGen's
+/// forked children), estimated from the label map and the parameters, against the memory the
+/// machine offers. `runPipeline` warns (on the run context: stderr in the CLI, the report's
+/// `warnings`) when the estimate exceeds what is available, and the report holds both figures
+/// (`memory_estimate`).
+///
+/// The model: the tree's peak is in VolumeMesh, where k = min(threads, materials) TetGen children
+/// each start as a copy of the main process (their shared pages count in each, as the sum of
+/// resident sizes counts them):
+///   peak = (1 + k) x (base + perGridMaterialVoxel x working-grid voxels x materials
+///                          + perInterfaceFace x voxel faces between two labels x (3 / edge length
+///                            in voxels)^2)
+/// calibrated against `Testing/Benchmarks/clinical_size.py` (the sum of the tree's resident sizes)
+/// on the femur phantom, the knee, colin27 and the hip phantom at scales 0.5 and 1, at default
+/// parameters and 2 threads (see the README's *Memory*). It is an estimate: kMemoryEstimateFactor
+/// is the factor the tests hold it to.
+
+#include <femesher/Parameters.h>
+#include <femesher/Types.h>
+
+#include <cstdint>
+#include <string>
+
+namespace femesher {
+
+/// The measured peaks of the calibration volumes lie within [estimate / factor, estimate x factor].
+constexpr double kMemoryEstimateFactor = 1.5;
+
+struct MemoryEstimate {
+  size_t gridVoxels = 0;       ///< the labelled box plus the working grid's margin
+  size_t materials = 0;        ///< meshed materials (background and excluded ones not counted)
+  size_t interfaceFaces = 0;   ///< voxel faces between two different labels (background too)
+  uintmax_t peakBytes = 0;     ///< estimated peak resident size of the process tree
+  uintmax_t availableBytes = 0;  ///< what the machine offers the run; 0 when unknown
+  std::string availableSource;   ///< where availableBytes comes from
+  bool exceeds() const { return availableBytes > 0 && peakBytes > availableBytes; }
+};
+
+/// Memory the run may use: the least of MemAvailable (/proc/meminfo), the address-space limit
+/// (RLIMIT_AS) and the cgroup's room (memory.max - memory.current of the process's cgroup v2, or
+/// v1's memory.limit_in_bytes - memory.usage_in_bytes, when set). The environment variable FEMESHER_MEMORY_AVAILABLE (bytes; for tests, to play a
+/// small machine) replaces them all. 0 when unknown. `source` names where the figure came from.
+uintmax_t memoryAvailableForRun(std::string* source = nullptr);
+
+/// The estimate for meshing `input` with `params`, and the memory available (one pass over the
+/// voxels).
+MemoryEstimate estimateRunMemory(const LabelVolume& input, const MeshingParameters& params);
+
+/// The warning for an estimate that exceeds the memory available ("" when it does not).
+std::string memoryWarning(const MemoryEstimate& estimate);
+
+}  // namespace femesher
