@@ -49,7 +49,8 @@ for v in $VOLUMES; do
   python3 - "$out/report.json" "$v" <<'EOF'
 import hashlib, json, sys
 r = json.load(open(sys.argv[1]))
-for k in ("stages", "total_seconds", "surface_mesher_seconds", "femesher_version"):
+# memory_estimate holds the machine's available memory at the time of the run.
+for k in ("stages", "total_seconds", "surface_mesher_seconds", "femesher_version", "memory_estimate"):
     r.pop(k, None)
 r.get("input", {}).pop("path", None)
 print(sys.argv[2], "report.counts+quality+fidelity",

@@ -278,3 +278,28 @@ TEST(SizingField, CurvatureTermSizesABallBySqrtSixDRAndLeavesAPlaneAlone) {
   ASSERT_FALSE(flat0.empty());
   for (size_t q = 0; q < flat0.size(); ++q) EXPECT_NEAR(flat1[q], flat0[q], 1e-6 * flat0[q]) << q;
 }
+
+// The gradation sweeps run their wavefronts of rows in parallel: the same floats on any number of
+// threads (a grid large enough that the rows are split).
+TEST(SizingField, GradationLimitIsTheSameOnAnyNumberOfThreads) {
+  Grid3 g;
+  g.dims = {{23, 61, 47}};
+  g.spacing = {{0.7, 0.36, 0.5}};
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(0.2f, 9.f);
+  std::vector<float> start(g.size());
+  for (auto& x : start) x = u(rng);
+  std::vector<float> reference;
+  for (int threads : {1, 2, 3, 8}) {
+    RunContext ctx;
+    ctx.setThreads(threads);
+    std::vector<float> h = start;
+    limitGradation(g, h, 0.3, &ctx);
+    if (reference.empty()) {
+      reference = h;
+      expectGradation(g, h, 0.3);
+    } else {
+      ASSERT_EQ(h, reference) << threads << " threads";
+    }
+  }
+}

@@ -6,7 +6,13 @@
 #include <femesher/VecMath.h>
 #include <femesher/stages/IndicatorFunctions.h>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -262,44 +268,71 @@ int limitGradation(const Grid3& grid, std::vector<float>& h, double L, RunContex
     step[n] = L * nbs[n].length;
     offset[n] = nbs[n].di + (long long)nx * (nbs[n].dj + (long long)ny * nbs[n].dk);
   }
+  tbb::task_arena arena(resolveThreads(ctx ? ctx->threads() : 0));
+  // One row (j, k) of a sweep: in raster order it reads only rows (j - 1, k) and (j - 1 .. j + 1,
+  // k - 1) and its own earlier voxels (mirrored for the backward sweep), so all rows on one
+  // wavefront j + 2 k (counted from the sweep's start) are independent: they run in parallel
+  // with exactly the arithmetic of the sequential sweep, hence the same result.
+  auto sweepRow = [&](int sign, int j, int k) {
+    bool changed = false;
+    const bool innerRow = j > 0 && k > 0 && j < ny - 1 && k < nz - 1;
+    for (int ii = 0; ii < nx; ++ii) {
+      const int i = sign > 0 ? ii : nx - 1 - ii;
+      const size_t v = grid.index(i, j, k);
+      const bool inner = innerRow && i > 0 && i < nx - 1;  // every neighbour inside the grid
+      double hv = h[v];
+      bool lowered = false;
+      for (size_t n = 0; n < nbs.size(); ++n) {
+        if (!inner) {
+          const int ni = i + sign * nbs[n].di, nj = j + sign * nbs[n].dj,
+                    nk = k + sign * nbs[n].dk;
+          if (ni < 0 || nj < 0 || nk < 0 || ni >= nx || nj >= ny || nk >= nz) continue;
+        }
+        const double cand = double(h[v + sign * offset[n]]) + step[n];
+        if (cand < hv) {
+          hv = cand;
+          lowered = true;
+        }
+      }
+      if (lowered) {
+        h[v] = floatNotAbove(hv);
+        changed = true;
+      }
+    }
+    return changed;
+  };
   int sweeps = 0;
   for (;;) {
-    bool changed = false;
+    std::atomic<bool> changed{false};
     // sign = +1: forward sweep in raster order, reading the preceding neighbours (offset < 0,
     // already final in this sweep); -1: backward sweep, reading the following ones. Two sweeps
     // give the chamfer envelope (every neighbour path reorders into forward moves then backward
     // moves); the loop repeats only to confirm it (or to finish paths bent by the grid border).
     for (int sign : {1, -1}) {
       ++sweeps;
-      for (int kk = 0; kk < nz; ++kk) {
+      for (int t = 0; t <= (ny - 1) + 2 * (nz - 1); ++t) {
         if (ctx) ctx->checkCancel();
-        const int k = sign > 0 ? kk : nz - 1 - kk;
-        for (int jj = 0; jj < ny; ++jj) {
-          const int j = sign > 0 ? jj : ny - 1 - jj;
-          for (int ii = 0; ii < nx; ++ii) {
-            const int i = sign > 0 ? ii : nx - 1 - ii;
-            const size_t v = grid.index(i, j, k);
-            double hv = h[v];
-            bool lowered = false;
-            for (size_t n = 0; n < nbs.size(); ++n) {
-              const int ni = i + sign * nbs[n].di, nj = j + sign * nbs[n].dj,
-                        nk = k + sign * nbs[n].dk;
-              if (ni < 0 || nj < 0 || nk < 0 || ni >= nx || nj >= ny || nk >= nz) continue;
-              const double cand = double(h[v + sign * offset[n]]) + step[n];
-              if (cand < hv) {
-                hv = cand;
-                lowered = true;
-              }
-            }
-            if (lowered) {
-              h[v] = floatNotAbove(hv);
-              changed = true;
-            }
+        const int kLo = std::max(0, (t - (ny - 1) + 1) / 2), kHi = std::min(nz - 1, t / 2);
+        if (kHi < kLo) continue;
+        auto rows = [&](int lo, int hi) {
+          bool any = false;
+          for (int kk = lo; kk < hi; ++kk) {
+            const int jj = t - 2 * kk;
+            any |= sweepRow(sign, sign > 0 ? jj : ny - 1 - jj, sign > 0 ? kk : nz - 1 - kk);
           }
-        }
+          if (any) changed.store(true, std::memory_order_relaxed);
+        };
+        // Thousands of short wavefronts: oneTBB's pool, not a thread start per wavefront.
+        if (arena.max_concurrency() == 1 || kHi - kLo < 8)
+          rows(kLo, kHi + 1);
+        else
+          arena.execute([&] {
+            tbb::parallel_for(tbb::blocked_range<int>(kLo, kHi + 1, 4),
+                              [&](const tbb::blocked_range<int>& r) { rows(r.begin(), r.end()); });
+          });
       }
     }
-    if (!changed) break;
+    if (!changed.load()) break;
   }
   return sweeps;
 }
@@ -370,7 +403,10 @@ SizingField computeSizingField(const LabelVolume& volume, const LabelMedialAxes&
     limitByCurvature(volume, *surfaces, params.curvatureDistance * std::min({grid.spacing[0], grid.spacing[1], grid.spacing[2]}), field,
                      params.threads, ctx);
   ctx.progress(0.8);
-  limitGradation(grid, field.h, params.gradation, &ctx);
+  const auto t0 = std::chrono::steady_clock::now();
+  const int sweeps = limitGradation(grid, field.h, params.gradation, &ctx);
+  ctx.debug("SizingField: gradation limit in " + std::to_string(sweeps) + " sweeps, " +
+            std::to_string(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()) + " s");
   ctx.progress(1.0);
   return field;
 }

@@ -12,7 +12,8 @@
 ///    With `interfacesOnly = false` the clamp is applied at every voxel instead.
 /// 4. Gradation: h(x) ≤ h(y) + L·|x − y| for every pair of 26-neighbours, enforced by forward and
 ///    backward raster sweeps over the 26-neighbourhood (physical step lengths) repeated until
-///    nothing changes: the result is the largest field below h0 that satisfies the bound, i.e.
+///    nothing changes (the rows of a sweep on one wavefront j + 2k run in parallel on oneTBB,
+///    with the sequential sweep's arithmetic, so the result does not depend on the threads): the result is the largest field below h0 that satisfies the bound, i.e.
 ///    h(x) = min_y h0(y) + L·d26(x, y) with d26 the shortest 26-neighbour path length (≥ the
 ///    Euclidean distance, at most ~8 % more, which only makes h smaller).
 /// 3b. With `curvatureDistance` d > 0 (and the run's indicator functions), h0 at an interface
