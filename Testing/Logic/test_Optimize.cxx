@@ -3,6 +3,7 @@
 // lowers the worst angle, peels only thin boundary tets, smooths interior vertices.
 #include "MeshInvariants.h"
 #include "TetMeasures.h"
+#include "TestShapes.h"
 
 #include <femesher/Phantom.h>
 #include <femesher/Pipeline.h>
@@ -934,29 +935,17 @@ struct BoxCapMesh {
   std::vector<int32_t> labels;
   int32_t apex = -1;
   explicit BoxCapMesh(double h) {
-    const int n = 4;
-    auto id = [n](int i, int j, int k) { return int32_t(i + (n + 1) * (j + (n + 1) * k)); };
-    for (int k = 0; k <= n; ++k)
-      for (int j = 0; j <= n; ++j)
-        for (int i = 0; i <= n; ++i) p.push_back({double(i), double(j), double(k)});
-    apex = id(2, 2, 1);
+    TetMesh m = femesher::test::cubeGridMesh(4, 1.0, {0, 0, 0}, [](const Vec3& c) { return c[0] < 2 ? 1 : 0; });
+    p = m.points;
+    apex = int32_t(2 + 5 * (2 + 5 * 1));  // (2, 2, 1)
     p[size_t(apex)][2] = h;
-    const int perm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-    for (int k = 0; k < n; ++k)
-      for (int j = 0; j < n; ++j)
-        for (int i = 0; i < 2; ++i)
-          for (const auto& a : perm) {
-            int c[3] = {i, j, k};
-            std::array<int32_t, 4> T;
-            T[0] = id(c[0], c[1], c[2]);
-            for (int s = 0; s < 3; ++s) {
-              ++c[a[s]];
-              T[size_t(s + 1)] = id(c[0], c[1], c[2]);
-            }
-            orientPositively(p, T);
-            t.push_back(T);
-            labels.push_back(1);
-          }
+    for (size_t q = 0; q < m.tets.size(); ++q)
+      if (m.tetLabels[q] == 1) {  // the background has no tets
+        auto T = m.tets[q];
+        orientPositively(p, T);
+        t.push_back(T);
+        labels.push_back(1);
+      }
   }
   /// Whether a tet has exactly these corners (by position: the optimiser renumbers vertices).
   bool hasTet(std::array<Vec3, 4> q) const {
