@@ -28,7 +28,7 @@ import struct
 import subprocess
 import sys
 import tempfile
-import zlib
+from hostile_inputs import write_big_gzip_nrrd
 
 CLI = os.environ["FEMESHER_CLI"]
 TMP = tempfile.mkdtemp(prefix="cli_hostile_", dir=os.environ.get("FEMESHER_TMP"))
@@ -246,15 +246,7 @@ check(r.returncode == 0, "a small map reads within the address space limit (rc=%
       % (r.returncode, r.stderr[-300:]))
 n = 400
 big = os.path.join(inputs, "big.nrrd")
-pattern = bytes((i * 7919 >> 5) % 4 for i in range(16384)) * 4  # 64 KB = 16384 uint32 values
-comp = zlib.compressobj(1, zlib.DEFLATED, 16 + 15)
-with open(big, "wb") as f:
-    f.write(("NRRD0004\ntype: uint32\ndimension: 3\nsizes: %d %d %d\nendian: little\n"
-             "encoding: gzip\n\n" % (n, n, n)).encode())
-    total = n * n * n * 4
-    for _ in range(total // len(pattern)):
-        f.write(comp.compress(pattern))
-    f.write(comp.compress(pattern[:total % len(pattern)]) + comp.flush())
+total = write_big_gzip_nrrd(big, n)
 for cmd in ("mesh", "info"):
     extra = ["-o", os.path.join(quiet, "never.vtu")] + fast if cmd == "mesh" else []
     r = run(cmd, big, *extra, preexec=limits(address_space=AS_LIMIT))

@@ -19,7 +19,7 @@ import subprocess
 import sys
 import tempfile
 import time
-import zlib
+from hostile_inputs import write_big_gzip_nrrd
 
 CLI = os.environ["FEMESHER_CLI"]
 TMP = tempfile.mkdtemp(prefix="cli_signals_", dir=os.environ.get("FEMESHER_TMP"))
@@ -130,15 +130,7 @@ fast = ["--preset", "coarse", "--set", "compute_fidelity=false"]
 # converted: seconds of reading); the signal goes once the process has the file open.
 n = 400
 big = os.path.join(TMP, "big.nrrd")
-pattern = bytes((i * 7919 >> 5) % 4 for i in range(16384)) * 4
-comp = zlib.compressobj(1, zlib.DEFLATED, 16 + 15)
-with open(big, "wb") as f:
-    f.write(("NRRD0004\ntype: uint32\ndimension: 3\nsizes: %d %d %d\nendian: little\n"
-             "encoding: gzip\n\n" % (n, n, n)).encode())
-    total = n * n * n * 4
-    for _ in range(total // len(pattern)):
-        f.write(comp.compress(pattern))
-    f.write(comp.compress(pattern[:total % len(pattern)]) + comp.flush())
+write_big_gzip_nrrd(big, n)
 
 for sig in (signal.SIGINT, signal.SIGTERM):
     out = os.path.join(TMP, "read_%s" % sig.name)
