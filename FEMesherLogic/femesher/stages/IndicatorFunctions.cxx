@@ -63,7 +63,9 @@ void squaredEdt(std::vector<float>& g, const std::array<int, 3>& dims, const Vec
   const size_t strides[3] = {sx, sy, sz};
   for (int axis = 0; axis < 3; ++axis) {
     const int n = dims[axis];
-    const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+    // Consecutive lines of a chunk are neighbours along x where the line is not along x, so the
+    // strided reads of one line hit the cache lines the previous one brought in.
+    const int a1 = axis == 0 ? 1 : 0, a2 = axis == 2 ? 1 : 2;
     const size_t lines = size_t(dims[a1]) * dims[a2];
     parallelFor(lines, threads, [&](size_t b, size_t e, int) {
       std::vector<float> f(n), d(n);
@@ -99,7 +101,9 @@ void gaussianBlur(std::vector<float>& g, const std::array<int, 3>& dims, double 
   const size_t strides[3] = {1, size_t(dims[0]), size_t(dims[0]) * dims[1]};
   for (int axis = 0; axis < 3; ++axis) {
     const int n = dims[axis];
-    const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+    // Consecutive lines of a chunk are neighbours along x where the line is not along x, so the
+    // strided reads of one line hit the cache lines the previous one brought in.
+    const int a1 = axis == 0 ? 1 : 0, a2 = axis == 2 ? 1 : 2;
     const size_t lines = size_t(dims[a1]) * dims[a2];
     parallelFor(lines, threads, [&](size_t b, size_t e, int) {
       std::vector<float> in(n);
@@ -128,7 +132,9 @@ void sparseGaussianBlur(std::vector<float>& g, const std::array<int, 3>& dims, d
   const size_t strides[3] = {1, size_t(dims[0]), size_t(dims[0]) * dims[1]};
   for (int axis = 0; axis < 3; ++axis) {
     const int n = dims[axis];
-    const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+    // Consecutive lines of a chunk are neighbours along x where the line is not along x, so the
+    // strided reads of one line hit the cache lines the previous one brought in.
+    const int a1 = axis == 0 ? 1 : 0, a2 = axis == 2 ? 1 : 2;
     const size_t lines = size_t(dims[a1]) * dims[a2];
     parallelFor(lines, threads, [&](size_t b, size_t e, int) {
       std::vector<float> in(n);
