@@ -227,6 +227,7 @@ def min_dihedral_values(p, t):
 
 def sweep(femesher, count, seed, max_size=48, work=None, out=sys.stdout):
     work = work or tempfile.mkdtemp(prefix="random_volumes_")
+    os.makedirs(work, exist_ok=True)
     rows = []
     print("%-44s %4s %6s %9s %7s %7s %8s %7s %s" % ("volume", "exit", "zero", "worst", "<5deg",
                                                     "<10deg", "missing", "minDice", "status"), file=out)
