@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
+#include <femesher/VecMath.h>
 #include <femesher/stages/IndicatorFunctions.h>
 
 #include <algorithm>
@@ -520,6 +521,34 @@ IndicatorField computeIndicatorFunctions(const PreprocessedVolume& vol,
   }
   field.boxes_ = std::move(boxes);
   return field;
+}
+
+bool moveOntoInterface(const IndicatorField& f, int a, int b, Vec3& x) {
+  const PreprocessedVolume& vol = f.volume();
+  const double h = vol.minSpacing(), tol = 1e-4 * h;
+  const Vec3 start = vol.localToCanonical(x);
+  for (int it = 0; it < 25; ++it) {
+    const double gap = f.eval(a, x) - f.eval(b, x);
+    const Vec3 ga = f.gradient(a, x), gb = f.gradient(b, x);
+    Vec3 d;
+    for (int k = 0; k < 3; ++k) d[k] = (ga[k] - gb[k]) / vol.spacing[k];
+    if (std::fabs(gap) < tol) {
+      if (norm(sub(vol.localToCanonical(x), start)) > 2 * h) return false;
+      int around[8];
+      const int n = f.cornerLabels(x, around);
+      const double own = std::min(f.eval(a, x), f.eval(b, x));
+      for (int c = 0; c < n; ++c)
+        if (around[c] != a && around[c] != b && f.eval(around[c], x) > own + 10 * tol) return false;
+      return true;
+    }
+    const double dd = dot(d, d);
+    if (!(dd > 1e-20)) return false;
+    double s = -gap / dd;
+    const double len = std::fabs(s) * std::sqrt(dd);
+    if (len > 0.5 * h) s *= 0.5 * h / len;
+    for (int k = 0; k < 3; ++k) x[k] += s * d[k] / vol.spacing[k];
+  }
+  return false;
 }
 
 }  // namespace femesher

@@ -99,4 +99,10 @@ class IndicatorField {
 IndicatorField computeIndicatorFunctions(const PreprocessedVolume& volume,
                                          const IndicatorParameters& params, RunContext& ctx);
 
+/// Moves `x` (local index) onto the smooth interface f_a = f_b by Newton steps along the gradient
+/// of f_a - f_b (canonical metric, steps of at most half a voxel). False when it does not
+/// converge, ends more than two voxels from where it started, or lands where a third material
+/// leads (the point is then not on the a-b interface).
+bool moveOntoInterface(const IndicatorField& field, int a, int b, Vec3& x);
+
 }  // namespace femesher

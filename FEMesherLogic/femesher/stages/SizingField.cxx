@@ -149,22 +149,16 @@ void limitByCurvature(const LabelVolume& volume, const IndicatorField& f, double
             b = volume.labels[grid.index(ii, jj, kc)];
           }
           if (b == a || a >= f.labelCount() || b >= f.labelCount()) continue;
-          // onto the interface from the voxel centre, along the gradient of g
-          Vec3 x{{i * sp[0], j * sp[1], k * sp[2]}};
-          Vec3 n{{0, 0, 0}};
-          bool on = false;
-          for (int it = 0; it < 6 && !on; ++it) {
-            const Vec3 l{{x[0] / sp[0], x[1] / sp[1], x[2] / sp[2]}};
-            const double g = f.eval(a, l) - f.eval(b, l);
-            const Vec3 ga = f.gradient(a, l), gb = f.gradient(b, l);
-            for (int c = 0; c < 3; ++c) n[c] = (ga[c] - gb[c]) / sp[c];
-            const double len = norm(n);
-            if (!(len > 1e-6)) break;
-            n = scale(n, 1 / len);
-            x = sub(x, scale(n, g / len));
-            on = std::fabs(g / len) < 1e-3 * sp[0];
-          }
-          if (!on) continue;
+          // onto the interface from the voxel centre; its unit normal there (grid mm)
+          Vec3 l{{double(i), double(j), double(k)}};
+          if (!moveOntoInterface(f, a, b, l)) continue;
+          const Vec3 ga = f.gradient(a, l), gb = f.gradient(b, l);
+          Vec3 n;
+          for (int c = 0; c < 3; ++c) n[c] = (ga[c] - gb[c]) / sp[c];
+          const double len = norm(n);
+          if (!(len > 1e-6)) continue;
+          n = scale(n, 1 / len);
+          const Vec3 x{{l[0] * sp[0], l[1] * sp[1], l[2] * sp[2]}};
           // Chords of half the candidate size, but at least two voxels (the smooth interface of
           // a voxel map has bumps of a fraction of a voxel, which shorter chords would read as
           // curvature) and at most five (longer chords overstate a small sphere's curvature).
