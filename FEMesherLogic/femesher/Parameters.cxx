@@ -193,7 +193,9 @@ const std::vector<Binding>& bindings() {
          "An edge of a tet below optimize_min_dihedral shorter than facet_distance (two "
          "junction or interface vertices almost on top of each other) is collapsed onto one of its "
          "ends when the edge lies on every interface that end lies on and the topology of the mesh "
-         "and of each material stays the same. Off: no vertex is removed.", true},
+         "and of each material stays the same; where nothing else helps, also an edge up to "
+         "eight facet_distances long, when every interface triangle left around the kept end "
+         "lies within facet_distance of its smooth interface. Off: no vertex is removed.", true},
         [](MeshingParameters& p, double x) { p.optimize.collapseEdges = x != 0; },
         [](const MeshingParameters& p) { return p.optimize.collapseEdges ? 1.0 : 0.0; });
     add({"optimize_coarsen_min_dihedral", "double", "degrees", "", 0, 40, "Interior coarsening",

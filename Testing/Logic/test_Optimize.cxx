@@ -9,6 +9,7 @@
 #include <femesher/Pipeline.h>
 #include <femesher/RunContext.h>
 #include <femesher/stages/Optimize.h>
+#include <femesher/stages/internal/OptimizeEditor.h>
 
 #include <gtest/gtest.h>
 
@@ -788,6 +789,97 @@ TEST(Optimize, CollapsesAShortInterfaceEdgeAndKeepsTheInterface) {
   PlaneInterfaceMesh off = build();
   op.collapseEdges = false;
   EXPECT_EQ(optimizeTetMesh(off.p, off.t, off.labels, op, in, ctx).collapsedEdges, 0u);
+}
+
+// An interface vertex moved 0.6 along the plane between the materials, 0.4 from its neighbour:
+// the edge is four facet distances long, so the short-edge collapse leaves it; the long collapse
+// of the inserting rounds takes it when every interface triangle then around the kept end lies
+// within the facet distance of the interface, and refuses it (leaving the mesh as it was) where
+// the interface cannot be found at those triangles.
+TEST(Optimize, CollapsesALongInterfaceEdgeOnlyWhereTheTrianglesLeftAreWithinTheFacetDistance) {
+  using namespace femesher::optimize_detail;
+  const int n = 4;
+  auto id = [n](int i, int j, int k) { return int32_t(i + (n + 1) * (j + (n + 1) * k)); };
+  PlaneInterfaceMesh mesh(n);
+  for (int j = 1; j < n; ++j)
+    for (int i = 1; i < n; ++i) mesh.p[size_t(id(i, j, n / 2))] = {double(i), double(j), n / 2.0};
+  const int32_t gone = id(1, 1, n / 2), keep = id(2, 1, n / 2);
+  mesh.p[size_t(gone)] = {1.6, 1.0, n / 2.0};
+  Editor m(mesh.p, mesh.t, mesh.labels);
+  uint32_t t = 0;
+  double worst = 180;
+  for (uint32_t s : m.around[size_t(gone)]) worst = std::min(worst, m.quality(s));
+  for (uint32_t s : m.around[size_t(gone)])
+    if (m.has(s, keep) && m.quality(s) == worst) t = s;
+  ASSERT_TRUE(m.has(t, keep)) << "the worst tet around the moved vertex holds the short edge";
+  auto liveVolumes = [&m] {
+    std::map<int32_t, double> v;
+    for (uint32_t s = 0; s < m.tets.size(); ++s)
+      if (m.alive[s]) v[m.labels[s]] += m.volume(s);
+    return v;
+  };
+  const auto volumes0 = liveVolumes();
+  const size_t live0 = size_t(std::count(m.alive.begin(), m.alive.end(), 1));
+  OptimizeInterfaces in = planeInterfaces(n);
+  std::vector<uint32_t> fresh;
+  EXPECT_FALSE(collapseEdge(m, t, in.facetDistance, in, false, fresh)) << "0.4 is no short edge";
+  // The interface is not found left of x = 1.5 (a third material would lead there): the
+  // triangles that would reach x = 1 from the kept vertex cannot be checked.
+  OptimizeInterfaces unsure = in;
+  unsure.projectOntoInterface = [n](int a, int b, Vec3& x) {
+    if (a != 1 || b != 2 || x[0] < 1.5) return false;
+    x[2] = n / 2.0;
+    return true;
+  };
+  EXPECT_FALSE(collapseEdge(m, t, 8 * in.facetDistance, unsure, true, fresh));
+  EXPECT_TRUE(fresh.empty());
+  EXPECT_EQ(size_t(std::count(m.alive.begin(), m.alive.end(), 1)), live0) << "a refusal undoes";
+  EXPECT_EQ(liveVolumes(), volumes0);
+  ASSERT_TRUE(collapseEdge(m, t, 8 * in.facetDistance, in, true, fresh));
+  EXPECT_FALSE(m.alive[t]);
+  EXPECT_TRUE(m.around[size_t(gone)].empty() || m.around[size_t(keep)].empty());
+  double after = 180;
+  for (uint32_t s : fresh) after = std::min(after, m.quality(s));
+  EXPECT_GT(after, worst + 5);
+  const auto volumes1 = liveVolumes();
+  for (const auto& [label, v] : volumes0) EXPECT_NEAR(volumes1.at(label), v, 1e-9 * v);
+  Tets live;
+  std::vector<int32_t> liveLabels;
+  for (uint32_t s = 0; s < m.tets.size(); ++s)
+    if (m.alive[s]) live.push_back(m.tets[s]), liveLabels.push_back(m.labels[s]);
+  for (const auto& [f, held] : faceLabels(live, liveLabels)) {
+    EXPECT_LE(held.size(), 2u);
+    if (held.size() == 2 && held[0] != held[1])
+      for (int32_t v : f) EXPECT_EQ(mesh.p[size_t(v)][2], n / 2.0) << "interface face off the plane";
+  }
+}
+
+// One budget per material for every operation that changes its volume: peeling takes at most
+// kPeelBudget of it, and the net moved volume (either sign) and the peeled one together at most
+// kVolumeBudget, so a material that peeling left alone may move more.
+TEST(Optimize, PeelingAndInterfaceMovesShareOneVolumeBudgetPerMaterial) {
+  using namespace femesher::optimize_detail;
+  TetMesh grid = femesher::test::cubeGridMesh(4, 1.0, {0, 0, 0}, [](const Vec3& g) {
+    return g[2] < 2 ? 1 : 2;
+  });
+  Editor m(grid.points, grid.tets, grid.tetLabels);
+  ASSERT_NEAR(m.startVolume[1], 32.0, 1e-12);
+  const double all = kVolumeBudget * 32, peel = kPeelBudget * 32;
+  ASSERT_LT(peel, all);
+  EXPECT_TRUE(m.moveFits(1, 0.99 * all));
+  EXPECT_TRUE(m.moveFits(1, -0.99 * all));
+  EXPECT_FALSE(m.moveFits(1, -1.01 * all));
+  EXPECT_TRUE(m.peelFits(1, 0.99 * peel, 1.0));
+  EXPECT_FALSE(m.peelFits(1, 1.01 * peel, 1.0));
+  EXPECT_FALSE(m.peelFits(1, 0.99 * peel, 0.75)) << "the share of the peel budget";
+  m.peeledVolume[1] = 0.99 * peel;  // what peeling took
+  EXPECT_TRUE(m.moveFits(1, 0.99 * (all - m.peeledVolume[1])));
+  EXPECT_FALSE(m.moveFits(1, -1.01 * (all - m.peeledVolume[1])));
+  EXPECT_TRUE(m.moveFits(2, 0.99 * all)) << "material 2 has its own budget";
+  m.peeledVolume[1] = 0;
+  m.movedVolume[1] = -0.9 * all;  // what the moves took: peeling gets only the rest
+  EXPECT_FALSE(m.peelFits(1, 0.2 * all, 1.0));
+  EXPECT_TRUE(m.peelFits(1, 0.09 * all, 1.0));
 }
 
 TEST(Optimize, FlipsAnInterfaceEdgeWhenTheNewTrianglesStayWithinTheFacetDistance) {

@@ -50,6 +50,9 @@ struct Case {
   /// 2026-11-25 (session 13): peeling flat caps on the volume's box (Optimize.h) leaves every
   /// default run's worst angle where it was except example_seg_dicom, 11.11 -> 10.60 (a cap of
   /// label 87 elsewhere, reached by the changed order of operations), floor 10.5.
+  /// Session 14: long edge collapses within the facet distance, four inserting rounds and one
+  /// 0.5 % volume budget per material: frogtissue 9.97 -> 11.00, example_seg_dicom 10.60 -> 12.84,
+  /// example_seg 6.34 -> 6.83, phantom 14.6 -> 15.0; the others unchanged.
   double minWorstAngle = 0;
   /// Ceiling on the number of tets (issue 13: fewer elements), a few per cent above the count
   /// measured 2026-11-25 with TetGen's dihedral bound 3: knee 506,594, colin27 2,773,833,
@@ -150,9 +153,9 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"spheres_argmax.nrrd", 10, 0.90, 14.9, 8450},
                       Case{"colin27_v3.nrrd", 10, 0.90, 8.2, 2857000},
                       Case{"digimouse.nrrd", 10, 0.85, 11.3, 739000},
-                      Case{"frogtissue.nrrd", 10, 0.85, 9.9, 845000},
-                      Case{"example_seg.nii.gz", 10, 0.85, 6.3, 64950},
-                      Case{"example_seg_dicom.nii.gz", 10, 0.85, 10.5, 170400},
+                      Case{"frogtissue.nrrd", 10, 0.85, 10.9, 845000},
+                      Case{"example_seg.nii.gz", 10, 0.85, 6.8, 64950},
+                      Case{"example_seg_dicom.nii.gz", 10, 0.85, 12.7, 170400},
                       Case{"9135902_00m_WB01.nii.gz", 10, 0.90, 11.9, 521800}),
     [](const ::testing::TestParamInfo<Case>& info) {
       std::string n = info.param.file;

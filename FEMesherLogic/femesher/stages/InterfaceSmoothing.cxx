@@ -242,12 +242,23 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
     }
     volumeChange(change);
     for (size_t l = 0; l < change.size(); ++l)
-      if (std::fabs(m.movedVolume[l] + change[l]) > kVolumeBudget * m.startVolume[l]) return false;
+      if (!m.moveFits(l, m.movedVolume[l] + change[l])) return false;
     return in.boxPlanes(m.pts[size_t(v)]) == box;
   };
   if (!smoothVertex(m, v, &c)) return false;
   volumeChange(change);
   for (size_t l = 0; l < change.size(); ++l) m.movedVolume[l] += change[l];
+  return true;
+}
+
+bool starWithinFacetDistance(const Editor& m, const OptimizeInterfaces& in, int32_t v) {
+  std::vector<int> materials;
+  std::vector<InterfaceFace> faces;
+  vertexInterfaces(m, in, v, materials, faces);
+  for (const auto& f : faces) {
+    const double d = centroidDistance(m, in, f);
+    if (d < 0 || d > in.facetDistance) return false;
+  }
   return true;
 }
 
@@ -289,8 +300,8 @@ bool flipInterfaceEdge(Editor& m, uint32_t t, const OptimizeInterfaces& in,
         near = d >= 0 && d <= in.facetDistance;
       }
       const double v = m.volume(t);
-      if (!near || std::fabs(m.movedVolume[size_t(own)] - v) > kVolumeBudget * m.startVolume[size_t(own)] ||
-          std::fabs(m.movedVolume[size_t(other)] + v) > kVolumeBudget * m.startVolume[size_t(other)])
+      if (!near || !m.moveFits(size_t(own), m.movedVolume[size_t(own)] - v) ||
+          !m.moveFits(size_t(other), m.movedVolume[size_t(other)] + v))
         continue;
       // t joins the other material: (a, b) is then inside it, and removing that edge must help.
       m.relabel(t, other);
@@ -348,8 +359,8 @@ bool relabelFlatTet(Editor& m, uint32_t t, const OptimizeInterfaces& in, double 
       near = d >= 0 ? d <= in.facetDistance : sliver;
     }
     if (!near ||
-        std::fabs(m.movedVolume[size_t(own)] - v) > kVolumeBudget * m.startVolume[size_t(own)] ||
-        std::fabs(m.movedVolume[size_t(other)] + v) > kVolumeBudget * m.startVolume[size_t(other)])
+        !m.moveFits(size_t(own), m.movedVolume[size_t(own)] - v) ||
+        !m.moveFits(size_t(other), m.movedVolume[size_t(other)] + v))
       continue;
     m.relabel(t, other);
     bool done = -negFaces > ownFaces;

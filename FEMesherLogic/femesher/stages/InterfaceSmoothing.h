@@ -17,7 +17,8 @@
 /// Bounds (both for vertex moves and interface edge flips): an interface triangle touched ends
 /// with its centroid at most max(its distance before, a quarter of facetDistance) from its
 /// interface (measured by projecting the centroid), and the net volume the operations move
-/// between materials stays within 0.1 % of each material's volume.
+/// between materials stays, with what peeling removed, within 0.5 % of each material's volume
+/// (Optimize.h, "volume budgets").
 ///
 /// Projection onto the interface of a and b: Newton on f_a - f_b along its gradient (steps of at
 /// most half a voxel, at most two voxels in all), accepted when |f_a - f_b| < 1e-4 voxel and a, b

@@ -20,7 +20,7 @@
 ///  - peeling: a flat tet with a face on the mesh's outer boundary (faces with no other tet: the
 ///    interface with the background or the volume's box) is removed when its thickness (smallest
 ///    altitude) is below `peelDistance` (never a material's last tet, at most 0.4 % of a
-///    material's volume in all; a tet at or above `minDihedralWarning` is peeled only when the
+///    material's volume in all, see "volume budgets" below; a tet at or above `minDihedralWarning` is peeled only when the
 ///    flips below do not help, and only within three quarters of that budget, so that the flattest
 ///    tets, which other operations often leave late, still find some). That flips two nearly
 ///    coplanar boundary triangles, drops a flat
@@ -58,6 +58,10 @@
 ///    first, are split at their midpoint together with every tet around the edge (any
 ///    material, so interface triangles on it are halved in their own plane) and the midpoint
 ///    moves by its class like any vertex above; kept when the worst tet around the edge rises.
+///  - long edge collapse, in the inserting rounds when a split does not help either: an edge of
+///    the tet up to eight facet distances long collapses onto one of its ends under the rules of
+///    collapseEdges, when every interface triangle then around the kept end has its centroid
+///    within the facet distance of its smooth interface (which must be found there).
 ///  - off-interface move, the last resort of the inserting rounds: a vertex of the tet with two
 ///    materials around may leave its interface, to anywhere within 0.95 × the facet distance
 ///    of it (pulled back to that distance; on a plane of the volume's box it stays in the plane,
@@ -65,6 +69,10 @@
 ///    its star; its interface triangles' centroids stay within 0.95 × the facet distance of the
 ///    interface (or no farther than they were) and the volume bound of the moves along it holds.
 ///    Four vertices on interfaces that are nearly coplanar leave no other way out.
+/// Volume budgets: interface moves, relabelling, interface flips and edge collapses may change a
+/// material's volume (net, either sign) and peeling may remove from it 0.5 % of that volume
+/// together, peeling at most 0.4 %: what peeling leaves unused, the moves may use (a small
+/// material mended by moves and collapses rather than by peeling needs it).
 /// Then the interior is coarsened (coarsenMinDihedral, with a size function `sizeAt`): interior
 /// vertices with an edge shorter than coarsenShortEdge × the size are collapsed onto a neighbour
 /// when the new tets stay at or above min(coarsenMinDihedral, the star's worst) (see below).

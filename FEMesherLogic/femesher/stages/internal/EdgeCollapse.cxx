@@ -95,17 +95,19 @@ bool linkCondition(const Editor& m, int32_t u, int32_t v, int32_t label) {
 
 }  // namespace
 
-bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, const OptimizeInterfaces& in,
-                       std::vector<uint32_t>& fresh) {
+bool collapseEdge(Editor& m, uint32_t t, double maxLength, const OptimizeInterfaces& in,
+                  bool checkFacets, std::vector<uint32_t>& fresh) {
   const auto T = m.tets[t];
-  int bi = -1, bj = -1;
-  double best = maxLength;
+  std::vector<std::pair<double, std::pair<int, int>>> edges;  // shortest first
   for (int i = 0; i < 4; ++i)
     for (int j = i + 1; j < 4; ++j) {
       const double len = norm(sub(m.pts[size_t(T[size_t(j)])], m.pts[size_t(T[size_t(i)])]));
-      if (len < best) best = len, bi = i, bj = j;
+      if (len < maxLength) edges.push_back({len, {i, j}});
     }
-  if (bi < 0) return false;
+  std::sort(edges.begin(), edges.end());
+  // Without the facet check only the shortest edge is tried (the interfaces move by less than
+  // maxLength, the facet distance).
+  if (!(checkFacets && in.enabled()) && edges.size() > 1) edges.resize(1);
   auto materialsAndOuter = [&](const std::vector<uint32_t>& tets, int32_t x, int32_t y,
                                std::vector<int32_t>& mats) {
     bool outer = false;
@@ -125,7 +127,9 @@ bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, const OptimizeIn
   };
   std::vector<uint32_t> ring;
   std::vector<int32_t> edgeMats, goneMats;
-  for (int attempt = 0; attempt < 2; ++attempt) {
+  for (int e = 0; e < 2 * int(edges.size()); ++e) {
+    const int bi = edges[size_t(e / 2)].second.first, bj = edges[size_t(e / 2)].second.second;
+    const int attempt = e % 2;
     const int32_t keep = T[size_t(attempt == 0 ? bi : bj)],
                   gone = T[size_t(attempt == 0 ? bj : bi)];
     m.tetsOnEdge(keep, gone, ring);
@@ -173,15 +177,23 @@ bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, const OptimizeIn
     for (size_t i = 0; i < moved.size(); ++i) account(m.labels[moved[i].first], movedVolume[i]);
     for (const auto& [l, c] : change)
       ok =
-          ok && std::fabs(m.movedVolume[size_t(l)] + c) <= kVolumeBudget * m.startVolume[size_t(l)];
+          ok && m.moveFits(size_t(l), m.movedVolume[size_t(l)] + c);
     if (!ok) continue;
-    for (const auto& [l, c] : change) m.movedVolume[size_t(l)] += c;
     for (uint32_t s : ring) m.kill(s);
+    std::vector<uint32_t> made;
     for (const auto& [s, N] : moved) {
       const int32_t label = m.labels[s];
       m.kill(s);
-      fresh.push_back(m.add(N, label));
+      made.push_back(m.add(N, label));
     }
+    if (checkFacets && in.enabled() && !starWithinFacetDistance(m, in, keep)) {
+      for (uint32_t s : made) m.kill(s);
+      for (uint32_t s : ring) m.revive(s);
+      for (const auto& [s, N] : moved) m.revive(s);
+      continue;
+    }
+    for (const auto& [l, c] : change) m.movedVolume[size_t(l)] += c;
+    fresh.insert(fresh.end(), made.begin(), made.end());
     return true;
   }
   return false;

@@ -21,9 +21,12 @@ namespace optimize_detail {
 constexpr double kEps = 1e-6;  // degrees: smallest improvement that counts
 constexpr double kRadToDeg = 57.29577951308232;
 constexpr double kDegToRad = 1 / kRadToDeg;
-/// Share of a material's volume that interface moves, relabelling and edge collapses may add or
-/// take in all (Editor::movedVolume).
-constexpr double kVolumeBudget = 1e-3;
+/// Share of a material's volume that the operations may change in all: the net volume interface
+/// moves, relabelling, interface flips and edge collapses add or take (Editor::movedVolume,
+/// counted by its size) plus the volume peeling removes (Editor::moveFits, peelFits).
+constexpr double kVolumeBudget = 5e-3;
+/// Share of a material's volume that peeling may remove in all (within kVolumeBudget).
+constexpr double kPeelBudget = 4e-3;
 
 /// Mutable tet mesh with vertex -> tet incidence; faces are found by intersecting incidences.
 class Editor {
@@ -41,6 +44,18 @@ class Editor {
     movedVolume.assign(perLabel.size(), 0);
     peeledVolume.assign(perLabel.size(), 0);
     for (size_t i = 0; i < tets.size(); ++i) startVolume[size_t(labels[i])] += volume(uint32_t(i));
+  }
+
+  /// True when material l's net moved volume may become `moved` (mm^3): |moved| and the volume
+  /// peeled from it stay within kVolumeBudget of its start volume together.
+  bool moveFits(size_t l, double moved) const {
+    return std::fabs(moved) + peeledVolume[l] <= kVolumeBudget * startVolume[l];
+  }
+  /// True when peeling `v` mm^3 more from material l stays within `share` of kPeelBudget of its
+  /// start volume, and within kVolumeBudget together with its net moved volume.
+  bool peelFits(size_t l, double v, double share) const {
+    return peeledVolume[l] + v <= share * kPeelBudget * startVolume[l] &&
+           peeledVolume[l] + v + std::fabs(movedVolume[l]) <= kVolumeBudget * startVolume[l];
   }
 
   std::vector<Vec3>& pts;
@@ -219,18 +234,25 @@ bool flipInterfaceEdge(Editor& m, uint32_t t, const OptimizeInterfaces& interfac
 bool relabelFlatTet(Editor& m, uint32_t t, const OptimizeInterfaces& interfaces, double tolerance,
                     std::vector<uint32_t>& fresh);
 
-/// Edge collapse: the shortest edge of tet t, when shorter than `maxLength` (mm), is collapsed
+/// Edge collapse: an edge of tet t shorter than `maxLength` (mm), shortest first, is collapsed
 /// by moving one end (`gone`) onto the other (`keep`), which stays where it is: the tets around
 /// the edge vanish and gone's other tets take keep instead. Allowed only when the edge lies on
 /// every interface and boundary gone lies on (the same materials around both, an outer face
 /// holding the edge if gone is on the outer boundary, every box plane of gone also keep's when
 /// `interfaces` knows the box), the link condition holds for the whole mesh
 /// and for each material, no new tet is flat or inverted, the worst of the changed tets rises and
-/// every material's volume stays within the budget interface moves share (kVolumeBudget).
-/// Interfaces move by at most the edge's length. Both ends are tried as `keep`; the new tets go
-/// to `fresh`. True when applied (internal/EdgeCollapse.cxx).
-bool collapseShortEdge(Editor& m, uint32_t t, double maxLength, const OptimizeInterfaces& interfaces,
-                       std::vector<uint32_t>& fresh);
+/// every material's volume stays within its budget (Editor::moveFits).
+/// Interfaces move by at most the edge's length. With `checkFacets` (and interfaces known) every
+/// interface triangle around keep must also end within the facet distance of its smooth interface
+/// (starWithinFacetDistance), so the edge may be longer than that distance. Both ends are tried
+/// as `keep`; the new tets go to `fresh`. True when applied (internal/EdgeCollapse.cxx).
+bool collapseEdge(Editor& m, uint32_t t, double maxLength, const OptimizeInterfaces& interfaces,
+                  bool checkFacets, std::vector<uint32_t>& fresh);
+
+/// True when every interface triangle around v (outer faces off the volume's box count as the
+/// interface with the background) has its centroid within the facet distance of its smooth
+/// interface, which must be found there (InterfaceSmoothing.cxx).
+bool starWithinFacetDistance(const Editor& m, const OptimizeInterfaces& interfaces, int32_t v);
 
 /// Interior coarsening (OptimizeParameters::coarsenMinDihedral): removes interior vertices by
 /// collapsing each onto the neighbour that leaves the best worst tet, shortest edges relative to
