@@ -24,6 +24,7 @@
 #include <algorithm>
 #include <atomic>
 #include <csignal>
+#include <optional>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -37,7 +38,8 @@ namespace fs = std::filesystem;
 namespace {
 
 std::atomic<RunContext*> gRunning{nullptr};
-/// True while the input is read: nothing is written yet, so a signal ends the process at once.
+/// True while the input is read (or while a command that writes only at its end computes):
+/// nothing is written yet, so a signal ends the process at once.
 std::atomic<bool> gReading{false};
 
 /// SIGINT/SIGTERM from the first byte read to the last rename: while reading, the canceled
@@ -246,6 +248,26 @@ struct CancellableRun {
   ~CancellableRun() { gRunning = nullptr; }
   CancellableRun(const CancellableRun&) = delete;
   CancellableRun& operator=(const CancellableRun&) = delete;
+  RunContext ctx;
+};
+
+/// Ctrl-C / SIGTERM for a command that reads and computes before it writes one output (phantom,
+/// quality, sizing, medial-axis): while it lives, a signal cancels its atomic writes before their
+/// rename (writeAtomically: Canceled, exit 12); inside a ReadingScope (reading and computing:
+/// nothing is written yet) the process ends at once with exit 12.
+struct CancellableCommand {
+  CancellableCommand() {
+    gRunning = &ctx;
+    setProcessCancelFlag(ctx.cancelToken().flag());
+    std::signal(SIGINT, onSignal);
+    std::signal(SIGTERM, onSignal);
+  }
+  ~CancellableCommand() {
+    setProcessCancelFlag(nullptr);
+    gRunning = nullptr;
+  }
+  CancellableCommand(const CancellableCommand&) = delete;
+  CancellableCommand& operator=(const CancellableCommand&) = delete;
   RunContext ctx;
 };
 
@@ -500,6 +522,8 @@ int runQuality(const std::string& meshPath, const std::string& labelsPath,
   if (!rasterPath.empty() && labelsPath.empty())
     return fail(Status(ErrorCode::InvalidArgument,
                        "--raster needs --labels: the mesh is sampled on that label map's voxel grid"));
+  CancellableCommand command;
+  std::optional<ReadingScope> computing(std::in_place);  // nothing written until the raster
   auto file = readMeshFile(meshPath);
   if (!file) return fail(file.status());
   const TetMesh* mesh = &file->mesh;  // the corner tets of a 10-node mesh
@@ -517,7 +541,7 @@ int runQuality(const std::string& meshPath, const std::string& labelsPath,
       worst.minOverMax = std::min(worst.minOverMax, j.minOverMax);
     }
   }
-  RunContext ctx;
+  RunContext& ctx = command.ctx;
   const QualityReport q = computeQuality(*mesh, ctx);
   FidelityReport fr;
   const bool withFidelity = !labelsPath.empty();
@@ -525,10 +549,13 @@ int runQuality(const std::string& meshPath, const std::string& labelsPath,
     auto labels = readLabelMap(labelsPath);
     if (!labels) return fail(labels.status());
     fr = computeFidelity(labels.value(), *mesh, ctx);
-    if (!rasterPath.empty())
-      if (Status st = writeLabelMap(rasterizeMesh(labels.value(), *mesh), rasterPath); !st)
-        return fail(st);
+    if (!rasterPath.empty()) {
+      const LabelVolume raster = rasterizeMesh(labels.value(), *mesh);
+      computing.reset();  // a signal from here on stops the write before its rename
+      if (Status st = writeLabelMap(raster, rasterPath); !st) return fail(st);
+    }
   }
+  computing.reset();
   if (asJson) {
     std::string text = "{\n\"element_order\": " + std::to_string(file->elementOrder) +
                        ",\n\"quality\": " + qualityReportToJson(q, true);
@@ -567,15 +594,19 @@ int runPhantom(const std::string& output, double voxelSize, bool hip, const CLI:
   if (hip && voxelSize > 0)
     return fail({ErrorCode::InvalidArgument, "--voxel-size is for the femur phantom: the hip "
                                              "phantom takes --scale (0.5: 256 x 256 x 200 voxels)"});
+  CancellableCommand command;
   LabelVolume v;
-  if (hip) {
-    HipPhantomOptions ho;
-    if (scale->count() > 0) ho.scale = scaleValue;
-    v = makeHipPhantom(ho);
-  } else {
-    PhantomOptions po;
-    if (voxelSize > 0) po.voxelSize = voxelSize;
-    v = makePhantom(po);
+  {
+    ReadingScope computing;  // nothing written yet: a signal ends the process at once
+    if (hip) {
+      HipPhantomOptions ho;
+      if (scale->count() > 0) ho.scale = scaleValue;
+      v = makeHipPhantom(ho);
+    } else {
+      PhantomOptions po;
+      if (voxelSize > 0) po.voxelSize = voxelSize;
+      v = makePhantom(po);
+    }
   }
   if (Status s = writeLabelMap(v, output); !s) return fail(s);
   std::fprintf(stderr, "wrote %s (%d x %d x %d voxels, %zu materials)\n", output.c_str(), v.dims[0],
@@ -602,9 +633,11 @@ int runMedialAxis(const std::string& input, const std::string& output, const std
     if (!end || *end != '\0')
       return fail({ErrorCode::InvalidArgument, "--label '" + labelText + "' is not an integer"});
   }
+  CancellableCommand command;
+  std::optional<ReadingScope> computing(std::in_place);  // nothing written until the image
   auto volume = readLabelMap(input);
   if (!volume) return fail(volume.status());
-  RunContext ctx;
+  RunContext& ctx = command.ctx;
   LabelVolume out;
   size_t voxels = 0;
   if (Status s = runGuarded([&] {
@@ -631,6 +664,7 @@ int runMedialAxis(const std::string& input, const std::string& output, const std
     return fail(s);
   std::fprintf(stderr, "%zu medial voxels (pruning %s, gamma %g)\n", voxels,
                medialAxisPruningName(p.sizing.pruning), p.sizing.gamma);
+  computing.reset();  // a signal from here on stops the write before its rename
   if (Status s = writeLabelMap(out, output); !s) return fail(s);
   std::fprintf(stderr, "wrote %s\n", output.c_str());
   return 0;
@@ -642,11 +676,13 @@ int runMedialAxis(const std::string& input, const std::string& output, const std
 int runSizing(const std::string& input, const std::string& output, const MeshOptions& o) {
   auto params = buildParameters(o);
   if (!params) return fail(params.status());
+  CancellableCommand command;
+  std::optional<ReadingScope> computing(std::in_place);  // nothing written until the field
   auto volume = readLabelMap(input);
   if (!volume) return fail(volume.status());
   MeshingParameters p = params.value();
   p.sizing.mode = SizingMode::Adaptive;
-  RunContext ctx;
+  RunContext& ctx = command.ctx;
   std::shared_ptr<const SizingField> field;
   LabelVolume geometry;
   if (Status s = runGuarded([&] {
@@ -657,6 +693,7 @@ int runSizing(const std::string& input, const std::string& output, const MeshOpt
       });
       !s)
     return fail(s);
+  computing.reset();  // a signal from here on stops the write before its rename
   if (Status s = writeScalarVolume(geometry, field->h, output); !s) return fail(s);
   const auto [mn, mx] = std::minmax_element(field->h.begin(), field->h.end());
   std::fprintf(stderr, "wrote %s: target edge length %.3g .. %.3g mm (%zu medial voxels)\n",

@@ -8,7 +8,9 @@
  - temporary files of a dead process (SIGKILL) are removed by the next run writing to that
    folder; those of a live process and other names are kept;
  - TetGen workers die with their parent: SIGKILL the run during VolumeMesh, and none of its
-   children is left two seconds later.
+   children is left two seconds later;
+ - phantom, sizing, medial-axis and quality --raster: exit 12 and nothing left, whether the
+   signal comes while they compute or while they write.
 Timeouts only guard against hangs; they are not what a case measures. Every input is generated
 here."""
 import os
@@ -274,6 +276,60 @@ for w in survivors:  # do not leave them running
         pass
 check(survivors == [], "no worker outlives the killed run by 2 s (left: %s)" % survivors)
 p.stderr.close()
+
+# ----------------------------------------------------------------------------------------------
+# 5. The commands that compute and then write one file (phantom, sizing, medial-axis, quality
+# --raster): a signal while they compute ends them at once with exit 12, one while they write
+# stops the write before its rename; nothing is left either way (they used to die by the signal,
+# leaving a temporary file behind when it came during the write).
+def expect_canceled(p, out, what):
+    rc, err = finish(p)
+    check(rc == CANCELED, "%s: exit 12 (got %s; %s)" % (what, rc, err[-300:]))
+    check(MESSAGE in err, "%s: the canceled message (%s)" % (what, err[-200:]))
+    check(listing(out) == [], "%s: nothing written, no temporary file (%s)" % (what, listing(out)))
+
+
+hip = os.path.join(TMP, "hip.nrrd")  # 256 x 256 x 200 voxels, for sizing and medial-axis
+r = subprocess.run([CLI, "phantom", "--hip", "--scale", "0.5", hip], capture_output=True, text=True)
+check(r.returncode == 0, "hip phantom written (%s)" % r.stderr[-300:])
+
+out = os.path.join(TMP, "phantom_computing")
+os.mkdir(out)
+p = start("phantom", "--hip", os.path.join(out, "h.nrrd"))  # about 10 s of computing
+time.sleep(1.0)
+p.send_signal(signal.SIGINT)
+expect_canceled(p, out, "SIGINT while the hip phantom is computed")
+
+out = os.path.join(TMP, "phantom_writing")
+os.mkdir(out)
+p = start("phantom", "--hip", os.path.join(out, "h.nrrd"))
+check(wait_for_temporary(p, out), "the hip phantom is being written (%s)" % listing(out))
+p.send_signal(signal.SIGTERM)
+expect_canceled(p, out, "SIGTERM while the hip phantom is written")
+
+for command in ("sizing", "medial-axis"):
+    out = os.path.join(TMP, command)
+    os.mkdir(out)
+    p = start(command, hip, "-o", os.path.join(out, "x.nrrd"))
+    deadline = time.time() + 120
+    while time.time() < deadline and p.poll() is None and not opened(p.pid, hip):
+        time.sleep(0.001)
+    time.sleep(1.0)  # past the reading, into the stages (several seconds on this size)
+    p.send_signal(signal.SIGINT)
+    expect_canceled(p, out, "SIGINT during %s" % command)
+
+mesh = os.path.join(TMP, "ball.vtu")
+r = subprocess.run([CLI, "mesh", small, "-o", mesh, *fast], capture_output=True, text=True,
+                   timeout=300)
+check(r.returncode == 0, "the ball is meshed for quality (%s)" % r.stderr[-300:])
+out = os.path.join(TMP, "quality")
+os.mkdir(out)
+p = start("quality", mesh, "--labels", big, "--raster", os.path.join(out, "r.nrrd"))
+deadline = time.time() + 120
+while time.time() < deadline and p.poll() is None and not opened(p.pid, big):
+    time.sleep(0.001)
+p.send_signal(signal.SIGTERM)
+expect_canceled(p, out, "SIGTERM while quality --raster reads its label map")
 
 if failures:
     print("\n%d failure(s)" % len(failures))

@@ -130,8 +130,15 @@ Status OutputTransaction::commit() {
   return status;
 }
 
+namespace {
+std::atomic<const std::atomic<bool>*> gProcessCancel{nullptr};
+}  // namespace
+
+void setProcessCancelFlag(const std::atomic<bool>* flag) { gProcessCancel = flag; }
+
 Status writeAtomically(const std::string& path, const FileWriter& writer) {
   OutputTransaction t;
+  t.setCancelFlag(gProcessCancel.load());
   if (Status s = t.stage(path, writer); !s) return s;
   return t.commit();
 }

@@ -71,8 +71,13 @@ long temporaryFileOwner(const std::string& fileName);
 /// paths removed.
 std::vector<std::string> removeStaleTemporaries(const std::vector<std::string>& outputs);
 
-/// One output written atomically: an OutputTransaction of `path` alone.
+/// One output written atomically: an OutputTransaction of `path` alone, cancelled by the
+/// process's cancel flag when one is set (setProcessCancelFlag).
 Status writeAtomically(const std::string& path, const FileWriter& writer);
+
+/// The cancel flag every writeAtomically of this process honours (a command-line run sets its
+/// signal-driven flag so that a single-output command stops before its rename); null = none.
+void setProcessCancelFlag(const std::atomic<bool>* flag);
 
 /// The outputs of one run must be distinct files: InvalidArgument naming both paths when two of
 /// `paths` are the same file (compared as canonical paths: "a/../x.vtu" and "x.vtu", a symbolic
