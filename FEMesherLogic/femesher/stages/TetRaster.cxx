@@ -38,6 +38,23 @@ struct TetFrame {
     return ok(l1, 1) && ok(l2, 2) && ok(l3, 3) && ok(1.0 - l1 - l2 - l3, 0);
   }
   bool ok(double l, int f) const { return l > kBaryTol || (l >= -kBaryTol && keepOnFace[f]); }
+  /// Over the unit cube centred at c, each barycentric coordinate lies within reach[k] of its
+  /// value at c: 1 when the whole cube is inside the tet (every point of it is contained), -1
+  /// when no point of it is, 0 when the cube may straddle the tet's boundary.
+  int cube(const Vec3& c) const {
+    const double px = c[0] - a[0], py = c[1] - a[1], pz = c[2] - a[2];
+    const double l1 = g[1][0] * px + g[1][1] * py + g[1][2] * pz;
+    const double l2 = g[2][0] * px + g[2][1] * py + g[2][2] * pz;
+    const double l3 = g[3][0] * px + g[3][1] * py + g[3][2] * pz;
+    const double l[4] = {1.0 - l1 - l2 - l3, l1, l2, l3};
+    bool inside = true;
+    for (int k = 0; k < 4; ++k) {
+      if (l[k] + reach[k] < -kBaryTol) return -1;
+      inside = inside && l[k] - reach[k] > kBaryTol;
+    }
+    return inside ? 1 : 0;
+  }
+  double reach[4];  ///< half the L1 norm of each coordinate's gradient (with a little margin)
 };
 
 TetFrame tetFrame(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
@@ -68,6 +85,10 @@ TetFrame tetFrame(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
   const double n0[3] = {g[1][0] + g[2][0] + g[3][0], g[1][1] + g[2][1] + g[3][1],
                         g[1][2] + g[2][2] + g[3][2]};
   f.keepOnFace[0] = lexPositive(n0);
+  // The margin covers rounding in the evaluation at a cube's centre against the one at a sample.
+  f.reach[0] = 0.5 * (std::fabs(n0[0]) + std::fabs(n0[1]) + std::fabs(n0[2])) * (1 + 1e-9) + 1e-12;
+  for (int k = 1; k < 4; ++k)
+    f.reach[k] = 0.5 * (std::fabs(g[k][0]) + std::fabs(g[k][1]) + std::fabs(g[k][2])) * (1 + 1e-9) + 1e-12;
   return f;
 }
 
@@ -163,10 +184,17 @@ void forEachCutSample(const LabelVolume& labels, const TetMesh& mesh, const std:
             framed = true;
           }
           if (f.flat) break;
+          // A voxel wholly outside the tet holds none of its samples, one wholly inside all.
+          const int where = f.cube({double(x), double(y), double(z)});
+          if (where < 0) continue;
           // The sub-sample cells of this voxel that the tet's box reaches.
           const int z0 = std::max(z * s, slo[2]), z1 = std::min(z * s + s - 1, shi[2]);
           const int y0 = std::max(y * s, slo[1]), y1 = std::min(y * s + s - 1, shi[1]);
           const int x0 = std::max(x * s, slo[0]), x1 = std::min(x * s + s - 1, shi[0]);
+          if (where > 0) {
+            for (int n = (z1 - z0 + 1) * (y1 - y0 + 1) * (x1 - x0 + 1); n > 0; --n) fn(t, vi);
+            continue;
+          }
           for (int Z = z0; Z <= z1; ++Z)
             for (int Y = y0; Y <= y1; ++Y)
               for (int X = x0; X <= x1; ++X) {
