@@ -1,10 +1,13 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // femesher: command-line front end of FEMesherLogic (batch meshing, inspection, Slicer CLI).
+#include "Batch.h"
 #include "CliProgress.h"
 #include "SlicerXml.h"
 
 #include <femesher/Parameters.h>
 #include <femesher/HipPhantom.h>
+#include <femesher/MemoryEstimate.h>
+#include <femesher/Parallel.h>
 #include <femesher/Phantom.h>
 #include <femesher/Pipeline.h>
 #include <femesher/RunReport.h>
@@ -116,6 +119,7 @@ struct MeshOptions {
   std::string saveParameters;
   std::string labelNames;  ///< colour table naming the labels (--label-names)
   bool quiet = false;
+  bool memoryEstimate = false;  ///< --memory-estimate: print the estimate (JSON), mesh nothing
   bool slicerInvocation = false;  ///< run as Slicer runs CLI modules (no subcommand)
   std::map<std::string, std::string> direct;   ///< --<parameter-key> value (one flag per parameter)
   std::map<std::string, std::string> negated;  ///< --no-<boolean-key> [value]: key = !value
@@ -259,6 +263,14 @@ void removeStaleFiles(const std::vector<std::string>& outputs, bool quiet) {
 int runMesh(const MeshOptions& o) {
   auto params = buildParameters(o);
   if (!params) return fail(params.status());
+  if (o.memoryEstimate) {  // for `batch` and the Snakemake workflow: the memory to plan for
+    auto volume = readNamedLabelMap(o.input, o.labelNames);
+    if (!volume) return fail(volume.status());
+    const int threads = resolveThreads(params->run.threads);
+    std::fputs(cli::memoryEstimateJson(o.input, estimateRunMemory(volume.value(), params.value()),
+                                       threads).c_str(), stdout);
+    return 0;
+  }
   if (o.outputs.empty() && o.report.empty() && o.saveParameters.empty())
     return fail({ErrorCode::InvalidArgument, "Nothing to write: give at least one -o OUTPUT."});
   if (Status s = checkOutputs(o.outputs, params.value(), {o.report, o.saveParameters}); !s)
@@ -681,6 +693,9 @@ void addMeshOptions(CLI::App* cmd, MeshOptions& o, bool positionalOutput) {
                   "Colour table naming the labels: 3D Slicer .ctbl/.txt or .csv, or an ITK-SNAP "
                   "label description file (material.<label>.name overrides it)");
   cmd->add_flag("-q,--quiet", o.quiet, "Only warnings and errors");
+  if (!positionalOutput)
+    cmd->add_flag("--memory-estimate", o.memoryEstimate,
+                  "Print the run's memory estimate (JSON) and exit without meshing");
   for (const auto& d : parameterDescriptors()) {
     const std::string key = d.key;
     if (key == "threads" || key == "seed") continue;  // dedicated options above
@@ -743,7 +758,7 @@ int parseFailure(CLI::App& app, const CLI::ParseError& e) {
 
 int main(int argc, char** argv) {
   // Slicer runs CLI modules as `femesher [--flags] input output` (no sub-command).
-  static const std::vector<std::string> commands = {"mesh", "quality", "info", "phantom",
+  static const std::vector<std::string> commands = {"mesh", "batch", "quality", "info", "phantom",
                                                     "medial-axis", "sizing", "optimize",
                                                     "parameters", "--xml", "--version", "-h",
                                                     "--help"};
@@ -752,11 +767,11 @@ int main(int argc, char** argv) {
     if (std::find(commands.begin(), commands.end(), argv[i]) != commands.end()) slicerStyle = false;
   // A misspelt command ("mseh") would otherwise be taken for Slicer's input file.
   if (slicerStyle && argv[1][0] != '-' && !fs::exists(argv[1])) {
-    const std::vector<std::string> names(commands.begin(), commands.begin() + 8);
+    const std::vector<std::string> names(commands.begin(), commands.begin() + 9);
     if (std::string hint = didYouMean(argv[1], names); !hint.empty())
       return fail({ErrorCode::InvalidArgument,
                    std::string("Unknown command '") + argv[1] + "'." + hint +
-                       " Commands: mesh, quality, info, phantom, medial-axis, sizing, optimize, "
+                       " Commands: mesh, batch, quality, info, phantom, medial-axis, sizing, optimize, "
                        "parameters (see femesher --help)."});
   }
   // Bare boolean flags (`--voxel_refinement`, `--no_voxel_refinement`) become `--flag=true`.
@@ -788,6 +803,9 @@ int main(int argc, char** argv) {
 
   auto* mesh = app.add_subcommand("mesh", "Mesh a label map");
   addMeshOptions(mesh, meshOpts, false);
+
+  cli::BatchOptions batchOpts;
+  auto* batch = cli::addBatchCommand(app, batchOpts);
 
   std::string qualityMesh, qualityLabels, qualityRaster;
   bool qualityJson = false;
@@ -872,6 +890,7 @@ int main(int argc, char** argv) {
   }
   try {
     if (*mesh) return runMesh(meshOpts);
+    if (*batch) return cli::runBatch(batchOpts);
     if (*optimizeCmd) return runOptimize(optMesh, optLabels, optOpts);
     if (*quality) return runQuality(qualityMesh, qualityLabels, qualityRaster, qualityJson);
     if (*info) return runInfo(infoInput, infoNames, infoJson);
