@@ -58,6 +58,7 @@ struct Case {
   json fingerprint;                     ///< what resume compares (see caseFingerprint)
   uintmax_t perProcessBytes = 0;        ///< memory estimate per process (see memoryEstimateJson)
   size_t materials = 0;
+  double startedUnix = 0;               ///< when its last child started (seconds since 1970)
   CaseRecord record;
 };
 
@@ -334,6 +335,11 @@ double secondsSince(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
+double unixNow() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
 /// A started child: what it runs for and when it started.
 struct Running {
   size_t index;
@@ -385,7 +391,8 @@ void estimateCases(std::vector<Case>& cases, const std::vector<size_t>& todo, in
       args.insert(args.end(), {"--threads", std::to_string(threads), "--memory-estimate"});
       const pid_t pid = spawn(args, (fs::path(c.dir) / kCaseLog).string(), fds[1]);
       ::close(fds[1]);
-      running[pid] = {todo[next++], std::chrono::steady_clock::now(), fds[0], 0};
+      running[pid] = {todo[next], std::chrono::steady_clock::now(), fds[0], 0};
+      cases[todo[next++]].startedUnix = unixNow();
       // The estimate's JSON is small (far below a pipe's buffer): read once the child ended.
     }
     int status = 0;
@@ -426,6 +433,8 @@ Status writeRecord(const Case& c) {
               {"input", c.input},
               {"exit_code", c.record.exitCode},
               {"wall_seconds", c.record.wallSeconds},
+              {"started_unix", c.startedUnix},
+              {"finished_unix", c.startedUnix + c.record.wallSeconds},
               {"error", c.record.error},
               {"fingerprint", c.fingerprint}};
   const std::string path = (fs::path(c.dir) / kCaseRecord).string();
@@ -625,6 +634,7 @@ int runBatch(const BatchOptions& o) {
       args.insert(args.end(), {"--threads", std::to_string(threads)});
       const pid_t pid = spawn(args, (fs::path(c.dir) / kCaseLog).string(), -1);
       running[pid] = {*next, std::chrono::steady_clock::now(), -1, need};
+      c.startedUnix = unixNow();
       booked += need;
       ++next;
     }
@@ -646,6 +656,10 @@ int runBatch(const BatchOptions& o) {
                             ? "canceled"
                             : "failed";
       c.record.error = lastLines(log, 5);
+      if (WIFSIGNALED(status))  // a crash or a kill: say so, the log may be empty
+        c.record.error = "killed by signal " + std::to_string(WTERMSIG(status)) + " (" +
+                         strsignal(WTERMSIG(status)) + ")" +
+                         (c.record.error.empty() ? "" : "; " + c.record.error);
     }
     if (c.record.status != "canceled") {
       if (Status s = writeRecord(c); !s) std::fprintf(stderr, "warning: %s\n", s.message().c_str());

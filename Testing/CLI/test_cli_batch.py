@@ -12,6 +12,9 @@ parameter file setting min_voxels=1), the built-in phantom and one broken case (
  - SIGINT in the middle of a batch: exit 12, a summary of what finished, no case folder with a
    partial set of outputs or a temporary file; the next run completes the rest and skips what
    had finished;
+ - a case whose `femesher mesh` crashes (SIGSEGV) is failed with exit 139, the others finish;
+ - when the memory available (FEMESHER_MEMORY_AVAILABLE) holds one case's estimate but not two,
+   cases never run at the same time, even with --jobs 2; with the machine's memory they do;
  - `--summarise-only` rewrites the same summary from the folder; `--list` prints the cases.
 Timeouts only guard against hangs; no time is asserted. With CI=true a missing tool or data file
 is a failure."""
@@ -236,7 +239,85 @@ check(all(s[c]["run"] == "up_to_date" for c in done) and
       all(s[c]["run"] == "meshed" and s[c]["status"] in ("ok", "poor_elements") for c in notdone),
       "it skips the finished cases and meshes the others: %s" % {c: v["run"] for c, v in s.items()})
 
-# 5. Wrong usage: exit 2 / 3 with a message.
+# 5. A crash in one case (SIGSEGV to its `femesher mesh`) does not take down the others.
+OUT3 = os.path.join(TMP, "out3")
+proc = subprocess.Popen([CLI, "batch", *small[:2], small[3], "-o", OUT3, "--jobs", "1",
+                         "--threads", "1"], stderr=subprocess.PIPE, text=True,
+                        stdin=subprocess.DEVNULL)
+
+
+def mesh_children(pid):
+    out = []
+    for name in os.listdir("/proc"):
+        try:
+            with open("/proc/%s/stat" % name) as f:
+                stat = f.read()
+            with open("/proc/%s/cmdline" % name) as f:
+                cmd = f.read().split("\0")
+        except (OSError, ValueError):
+            continue
+        fields = stat[stat.rfind(")") + 2:].split()
+        if int(fields[1]) == pid and fields[0] != "Z" and "mesh" in cmd and \
+                "--memory-estimate" not in cmd:
+            out.append((int(name), cmd[2]))
+    return out
+
+
+crashed = None
+while proc.poll() is None:
+    line = proc.stderr.readline()
+    if "[1/3]" in line:
+        deadline = time.time() + 30
+        while crashed is None and time.time() < deadline:
+            kids = mesh_children(proc.pid)
+            if kids:
+                os.kill(kids[0][0], signal.SIGSEGV)
+                crashed = os.path.basename(kids[0][1]).split(".")[0]
+            time.sleep(0.02)
+        break
+rest = proc.communicate(timeout=600)[1]
+s = summary(OUT3) if os.path.exists(os.path.join(OUT3, "summary.json")) else {}
+check(crashed is not None, "a running case's femesher mesh got SIGSEGV (%s)" % crashed)
+check(proc.returncode == 14, "the batch goes on and exits 14 (got %s)" % proc.returncode)
+check(s.get(crashed, {}).get("status") == "failed" and s.get(crashed, {}).get("exit_code") == 139
+      and "killed by signal 11" in s.get(crashed, {}).get("error", ""),
+      "the crashed case is failed with exit 139 (128 + SIGSEGV): %s" % s.get(crashed))
+check(sorted(c for c, v in s.items() if v["status"] == "ok") ==
+      sorted(c for c in s if c != crashed), "the other two cases are ok: %s" %
+      {c: v["status"] for c, v in s.items()})
+p = subprocess.run([CLI, "batch", *small[:2], small[3], "-o", OUT3], capture_output=True,
+                   text=True, timeout=1200)
+check(p.returncode == 0 and not temporaries(OUT3), "the next run meshes it; no temporary file left")
+
+# 6. Memory: with FEMESHER_MEMORY_AVAILABLE below the two smallest estimates together (and not
+# below the largest: each fits alone; 1 MB below, as the batch books whole-byte per-process
+# shares), cases never overlap in time
+# even with --jobs 2; with the machine's memory, two run at once.
+three = [small[1], small[2], small[3]]
+peaks = [json.loads(subprocess.run([CLI, "mesh", f, "--threads", "1", "--memory-estimate"],
+                                   capture_output=True, text=True, check=True).stdout)["peak_bytes"]
+         for f in three]
+for label, env, expect_overlap in (
+        ("room for one case at a time", {"FEMESHER_MEMORY_AVAILABLE":
+                                         str(max(sorted(peaks)[0] + sorted(peaks)[1] - 1000000,
+                                                 max(peaks)))}, False),
+        ("the machine's memory", {}, True)):
+    out = os.path.join(TMP, "mem_" + str(expect_overlap))
+    p = subprocess.run([CLI, "batch", *three, "-o", out, "--jobs", "2", "--threads", "1"],
+                       capture_output=True, text=True, timeout=1200, env=dict(os.environ, **env))
+    spans = []
+    for c in os.listdir(out):
+        rec = os.path.join(out, c, "batch-case.json")
+        if os.path.exists(rec):
+            with open(rec) as f:
+                r = json.load(f)
+            spans.append((r["started_unix"], r["finished_unix"]))
+    spans.sort()
+    overlap = any(b[0] < a[1] for a, b in zip(spans, spans[1:]))
+    check(p.returncode == 0 and len(spans) == 3 and overlap == expect_overlap,
+          "--jobs 2 with %s: cases overlap in time: %s" % (label, overlap))
+
+# 7. Wrong usage: exit 2 / 3 with a message.
 rc, err = batch(os.path.join(TMP, "o3"), "--format", "obj")
 check(rc == 2 and "obj" in err, "an unknown --format is exit 2")
 p = subprocess.run([CLI, "batch", os.path.join(TMP, "nothing*.nrrd"), "-o", TMP + "/o4"],
