@@ -3,6 +3,7 @@
 // take down the others), started by this process, which only schedules, records and summarises.
 #include "Batch.h"
 
+#include "CliCommon.h"
 #include "CohortSummary.h"
 
 #include <femesher/Status.h>
@@ -44,11 +45,6 @@ namespace {
 volatile std::sig_atomic_t gBatchSignal = 0;
 
 void onBatchSignal(int sig) { gBatchSignal = sig; }
-
-int fail(const Status& s) {
-  std::fprintf(stderr, "error [%s]: %s\n", errorCodeName(s.code()), s.message().c_str());
-  return exitCodeFor(s.code());
-}
 
 /// One case of the cohort.
 struct Case {
