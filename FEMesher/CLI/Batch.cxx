@@ -410,8 +410,12 @@ void estimateCases(std::vector<Case>& cases, const std::vector<size_t>& todo, in
       c.materials = e.value("materials", size_t(0));
       continue;
     }
+    if (gBatchSignal) {  // stopped by the forwarded signal: not run, nothing to report
+      c.record.status = "not_run";
+      continue;
+    }
     c.record.exitCode = code == 0 ? 13 : code;
-    c.record.status = code == exitCodeFor(ErrorCode::Canceled) ? "canceled" : "failed";
+    c.record.status = "failed";
     c.record.run = "meshed";
     c.record.wallSeconds = secondsSince(r.start);
     c.record.error = lastLines((fs::path(c.dir) / kCaseLog).string(), 5);
