@@ -51,6 +51,7 @@ struct Case {
   std::string id, input, parameterFile, labelNames;
   std::string dir;                      ///< OUT/<id>
   std::vector<std::string> args;        ///< femesher mesh's arguments, without --threads
+  std::vector<std::string> settings;    ///< formats, --preset and --set: part of the fingerprint
   json fingerprint;                     ///< what resume compares (see caseFingerprint)
   uintmax_t perProcessBytes = 0;        ///< memory estimate per process (see memoryEstimateJson)
   size_t materials = 0;
@@ -248,8 +249,9 @@ std::string fileHash(const std::string& path) {
 }
 
 /// What must not have changed for a case to be skipped: the input's size and modification time,
-/// the mesh arguments (parameters, formats), the parameter file's and colour table's contents and
-/// the femesher version. The thread count is not part of it.
+/// the settings (formats, preset, --set), the parameter file's and colour table's contents and
+/// the femesher version. Paths of outputs, parameter file and colour table are not part of it (a
+/// moved output folder still resumes), nor is the thread count.
 json caseFingerprint(const Case& c) {
   struct stat st {};
   const bool ok = ::stat(c.input.c_str(), &st) == 0;
@@ -257,7 +259,7 @@ json caseFingerprint(const Case& c) {
           {"input_size", ok ? json(st.st_size) : json()},
           {"input_mtime_ns",
            ok ? json(int64_t(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec) : json()},
-          {"arguments", c.args},
+          {"settings", c.settings},
           {"parameter_file_hash", fileHash(c.parameterFile)},
           {"label_names_hash", fileHash(c.labelNames)},
           {"femesher_version", FEMESHER_VERSION}};
@@ -418,7 +420,7 @@ void estimateCases(std::vector<Case>& cases, const std::vector<size_t>& todo, in
     c.record.status = "failed";
     c.record.run = "meshed";
     c.record.wallSeconds = secondsSince(r.start);
-    c.record.error = lastLines((fs::path(c.dir) / kCaseLog).string(), 5);
+    c.record.error = errorOf((fs::path(c.dir) / kCaseLog).string());
   }
   // Cases never estimated (canceled before their turn) are not run.
   for (size_t i = next; i < todo.size(); ++i) cases[todo[i]].record.status = "not_run";
@@ -562,6 +564,10 @@ int runBatch(const BatchOptions& o) {
     if (!c.parameterFile.empty()) c.args.insert(c.args.end(), {"--parameters", c.parameterFile});
     if (!c.labelNames.empty()) c.args.insert(c.args.end(), {"--label-names", c.labelNames});
     for (const auto& s : o.sets) c.args.insert(c.args.end(), {"--set", s});
+    c.settings = {"--format"};
+    c.settings.insert(c.settings.end(), formats.begin(), formats.end());
+    c.settings.insert(c.settings.end(), {"--preset", o.preset});
+    for (const auto& s : o.sets) c.settings.insert(c.settings.end(), {"--set", s});
     c.fingerprint = caseFingerprint(c);
     c.record.id = c.id;
     c.record.dir = c.dir;
@@ -655,7 +661,7 @@ int runBatch(const BatchOptions& o) {
       c.record.status = c.record.exitCode == exitCodeFor(ErrorCode::Canceled) && gBatchSignal
                             ? "canceled"
                             : "failed";
-      c.record.error = lastLines(log, 5);
+      c.record.error = errorOf(log);
       if (WIFSIGNALED(status))  // a crash or a kill: say so, the log may be empty
         c.record.error = "killed by signal " + std::to_string(WTERMSIG(status)) + " (" +
                          strsignal(WTERMSIG(status)) + ")" +

@@ -256,16 +256,35 @@ std::string scatterSvg(const std::vector<Row>& rows) {
       << "text-anchor='end'>" << fmt(std::pow(10, e), "%g") << " s</text>";
   }
   s << "<text x='" << (L + W - R) / 2 << "' y='" << H - 6 << "' class='axis'>tets</text>";
+  // Names beside the points, each where it overlaps no name placed before (right or left, above
+  // or below its point); a name with no free place is left out (the point's tooltip has it).
+  struct Box {
+    double x0, y0, x1, y1;
+  };
+  std::vector<Box> placed;
+  for (const Row* r : pts) placed.push_back({X(double(r->tets)) - 4, Y(r->c.wallSeconds) - 4,
+                                             X(double(r->tets)) + 4, Y(r->c.wallSeconds) + 4});
   for (const Row* r : pts) {
     const double x = X(double(r->tets)), y = Y(r->c.wallSeconds);
     const char* colour = r->status == "ok" ? kGood : kFair;
     s << "<circle cx='" << x << "' cy='" << y << "' r='4' fill='" << colour << "'><title>"
       << html(r->c.id) << ": " << r->tets << " tets, " << fmt(r->c.wallSeconds, "%.1f")
       << " s</title></circle>";
-    // Names beside the points (left of those in the right third, so that they stay inside).
-    if (pts.size() <= 30)
-      s << "<text x='" << (x > W * 0.66 ? x - 6 : x + 6) << "' y='" << y - 5 << "' class='pt'"
-        << (x > W * 0.66 ? " text-anchor='end'" : "") << ">" << html(r->c.id) << "</text>";
+    const double w = 5.6 * double(r->c.id.size()), h = 10;
+    for (const auto& [right, above] : {std::pair{true, true}, {true, false}, {false, true},
+                                      {false, false}}) {
+      const Box b = {right ? x + 6 : x - 6 - w, above ? y - 5 - h : y + 5,
+                     right ? x + 6 + w : x - 6, above ? y - 5 : y + 5 + h};
+      if (b.x0 < L || b.x1 > W - R || b.y0 < T || b.y1 > H - B) continue;
+      if (std::any_of(placed.begin(), placed.end(), [&](const Box& o) {
+            return b.x0 < o.x1 && o.x0 < b.x1 && b.y0 < o.y1 && o.y0 < b.y1;
+          }))
+        continue;
+      placed.push_back(b);
+      s << "<text x='" << b.x0 << "' y='" << b.y1 - 2 << "' class='pt'>" << html(r->c.id)
+        << "</text>";
+      break;
+    }
   }
   return s.str() + "</svg>";
 }
@@ -439,6 +458,14 @@ std::string lastLines(const std::string& path, int lines) {
   return o;
 }
 
+std::string errorOf(const std::string& logPath) {
+  const std::string tail = lastLines(logPath, 5);
+  size_t from = tail.rfind("\nerror");
+  if (tail.rfind("error", 0) == 0 && from == std::string::npos) from = 0;
+  else if (from != std::string::npos) ++from;
+  return from == std::string::npos ? tail : tail.substr(from);
+}
+
 std::vector<CaseRecord> scanCaseFolders(const std::string& outDir) {
   std::vector<CaseRecord> cases;
   std::error_code ec;
@@ -465,7 +492,7 @@ std::vector<CaseRecord> scanCaseFolders(const std::string& outDir) {
     }
     c.status = c.exitCode == 0 && rep.is_object() ? "ok" : "failed";
     c.run = c.exitCode < 0 ? "not_run" : "meshed";
-    if (c.status == "failed" && c.error.empty()) c.error = lastLines((dir / kCaseLog).string(), 5);
+    if (c.status == "failed" && c.error.empty()) c.error = errorOf((dir / kCaseLog).string());
     cases.push_back(c);
   }
   std::sort(cases.begin(), cases.end(),

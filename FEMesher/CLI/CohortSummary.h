@@ -35,6 +35,10 @@ std::vector<CaseRecord> scanCaseFolders(const std::string& outDir);
 /// The last `lines` non-empty lines of a text file ("" when unreadable).
 std::string lastLines(const std::string& path, int lines);
 
+/// What a failed case's log says: of its last 5 lines, those from the last "error" line on (the
+/// stage lines before it left out), or all 5 when none is an error line.
+std::string errorOf(const std::string& logPath);
+
 /// Writes summary.csv, summary.json and summary.html into `outDir` (each atomically).
 Status writeCohortSummary(const std::string& outDir, const std::vector<CaseRecord>& cases);
 

@@ -8,7 +8,8 @@ parameter file setting min_voxels=1), the built-in phantom and one broken case (
    error; the batch exits 14; every good case's outputs are complete and readable (meshio), and
    the summary's tet counts are those of the files;
  - a second run resumes: every good case is up to date and not rerun (outputs untouched), the
-   broken one is tried again; touching one input reruns that case only;
+   broken one is tried again; touching one input or changing a parameter file reruns exactly
+   those cases; a moved output folder still resumes;
  - SIGINT in the middle of a batch: exit 12, a summary of what finished, no case folder with a
    partial set of outputs or a temporary file; the next run completes the rest and skips what
    had finished;
@@ -185,6 +186,15 @@ s = summary(OUT)
 rerun = sorted(c for c in GOOD if s[c]["run"] == "meshed")
 check(rerun == ["cgal_12323", "cgal_420", "spheres"],
       "a touched input and a changed parameter file rerun exactly their cases: %s" % rerun)
+
+# A moved output folder still resumes (output paths are not part of the fingerprint).
+MOVED = os.path.join(TMP, "moved")
+os.rename(OUT, MOVED)
+rc, err = batch(MOVED)
+s = summary(MOVED)
+check(all(s[c]["run"] == "up_to_date" for c in GOOD), "a moved output folder resumes: %s"
+      % {c: s[c]["run"] for c in GOOD})
+os.rename(MOVED, OUT)
 
 # 3. --summarise-only: the same table from the folder.
 rc2 = subprocess.run([CLI, "batch", "--summarise-only", OUT], capture_output=True).returncode
