@@ -63,7 +63,8 @@ names = ["mickey.nrrd", "spheres_argmax.nrrd", "example_seg.nii.gz", "420.nrrd",
 missing = [n for n in names if not os.path.exists(os.path.join(DATA, n))]
 if missing:
     check(not IN_CI, "data files present: missing %s" % missing)
-    print("skipped outside CI: missing data")
+    if not IN_CI:
+        print("skipped outside CI: missing data")
     finish()
 
 IN = os.path.join(TMP, "in")

@@ -148,7 +148,8 @@ PartitionName=femesher Nodes={host} Default=YES MaxTime=INFINITE State=UP
 def main():
     if os.geteuid() != 0:
         check(not IN_CI, "runs as root (it starts munged, slurmctld and slurmd)")
-        print("skipped outside CI: not root")
+        if not IN_CI:
+            print("skipped outside CI: not root")
         return
     if not need_tools(check, ["snakemake", "munged", "slurmctld", "slurmd", "sbatch", "sinfo",
                               "scontrol"]):
