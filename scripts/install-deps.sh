@@ -17,6 +17,8 @@ PACKAGES=(
   python3 python3-numpy python3-meshio gmsh calculix-ccx
   # GUI tests
   xvfb xauth imagemagick
+  # cohorts: the Snakemake workflow, and the single-node Slurm its test starts
+  snakemake slurm-wlm munge
 )
 
 SUDO=""

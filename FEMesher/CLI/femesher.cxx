@@ -1,10 +1,15 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // femesher: command-line front end of FEMesherLogic (batch meshing, inspection, Slicer CLI).
+#include "Batch.h"
+#include "CliCommon.h"
 #include "CliProgress.h"
+#include "Inspect.h"
 #include "SlicerXml.h"
 
 #include <femesher/Parameters.h>
 #include <femesher/HipPhantom.h>
+#include <femesher/MemoryEstimate.h>
+#include <femesher/Parallel.h>
 #include <femesher/Phantom.h>
 #include <femesher/Pipeline.h>
 #include <femesher/RunReport.h>
@@ -22,8 +27,6 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
-#include <atomic>
-#include <csignal>
 #include <optional>
 #include <cstdio>
 #include <filesystem>
@@ -35,36 +38,13 @@
 using namespace femesher;
 namespace fs = std::filesystem;
 
+using cli::fail;
+using cli::readNamedLabelMap;
+
 namespace {
 
-std::atomic<RunContext*> gRunning{nullptr};
-/// True while the input is read (or while a command that writes only at its end computes):
-/// nothing is written yet, so a signal ends the process at once.
-std::atomic<bool> gReading{false};
-
-/// SIGINT/SIGTERM from the first byte read to the last rename: while reading, the canceled
-/// message and exit 12 at once (async-signal-safe: write and _exit); afterwards the run's cancel
-/// flag, which the stages poll and the output transaction checks before every write and rename.
-void onSignal(int) {
-  if (RunContext* ctx = gRunning.load()) ctx->cancel();
-  if (gReading.load()) {
-    static const char text[] = "error [canceled]: The run was canceled.\n";
-    const ssize_t ignored = ::write(STDERR_FILENO, text, sizeof text - 1);
-    (void)ignored;
-    ::_exit(exitCodeFor(ErrorCode::Canceled));
-  }
-}
-
-/// Marks the reading of the input for onSignal while it lives.
-struct ReadingScope {
-  ReadingScope() { gReading = true; }
-  ~ReadingScope() { gReading = false; }
-};
-
-int fail(const Status& s) {
-  std::fprintf(stderr, "error [%s]: %s\n", errorCodeName(s.code()), s.message().c_str());
-  return exitCodeFor(s.code());
-}
+using cli::CancellableCommand;
+using cli::ReadingScope;
 
 /// A FileWriter writing `text` and a newline.
 FileWriter textWriter(const std::string& path, const std::string& text) {
@@ -118,6 +98,7 @@ struct MeshOptions {
   std::string saveParameters;
   std::string labelNames;  ///< colour table naming the labels (--label-names)
   bool quiet = false;
+  bool memoryEstimate = false;  ///< --memory-estimate: print the estimate (JSON), mesh nothing
   bool slicerInvocation = false;  ///< run as Slicer runs CLI modules (no subcommand)
   std::map<std::string, std::string> direct;   ///< --<parameter-key> value (one flag per parameter)
   std::map<std::string, std::string> negated;  ///< --no-<boolean-key> [value]: key = !value
@@ -128,17 +109,6 @@ std::string flagName(const std::string& key) {
   for (auto& c : f)
     if (c == '_' || c == '.') c = '-';
   return f;
-}
-
-/// `s` as the inside of a JSON string (names come from files and users: quotes, backslashes).
-std::string jsonText(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    if (c == '"' || c == '\\') o += '\\';
-    if (static_cast<unsigned char>(c) < 0x20) o += ' ';
-    else o += c;
-  }
-  return o;
 }
 
 /// Every spelling of a boolean parameter's flags: --k-e-y, --k_e_y, --no-k-e-y, --no_k_e_y.
@@ -223,17 +193,6 @@ int writeRunOutputs(const PipelineResult& result, const MeshingParameters& param
                     const MeshOptions& o, const std::string& source, cli::CliProgress& progress,
                     CancellableRun& run);
 
-/// Reads a label map and, with `labelNames`, names its materials from that colour table.
-Result<LabelVolume> readNamedLabelMap(const std::string& input, const std::string& labelNames) {
-  auto volume = readLabelMap(input);
-  if (!volume || labelNames.empty()) return volume;
-  auto table = readLabelTable(labelNames);
-  if (!table) return table.status();
-  LabelVolume v = std::move(volume).value();
-  if (Status s = applyLabelTable(v, table.value(), labelNames); !s) return s;
-  return v;
-}
-
 /// A run context showing its progress on `progress` and cancelled by Ctrl-C / SIGTERM while it
 /// lives: a run makes it before reading its input and keeps it until its last output is renamed.
 struct CancellableRun {
@@ -241,33 +200,11 @@ struct CancellableRun {
     ctx.setProgressCallback(
         [&progress](const std::string& st, double f, double t) { progress.update(st, f, t); });
     ctx.setLogCallback([&progress](LogLevel l, const std::string& m) { progress.log(l, m); });
-    gRunning = &ctx;
-    std::signal(SIGINT, onSignal);
-    std::signal(SIGTERM, onSignal);
+    cli::cancelOnSignal(&ctx);
   }
-  ~CancellableRun() { gRunning = nullptr; }
+  ~CancellableRun() { cli::cancelOnSignal(nullptr); }
   CancellableRun(const CancellableRun&) = delete;
   CancellableRun& operator=(const CancellableRun&) = delete;
-  RunContext ctx;
-};
-
-/// Ctrl-C / SIGTERM for a command that reads and computes before it writes one output (phantom,
-/// quality, sizing, medial-axis): while it lives, a signal cancels its atomic writes before their
-/// rename (writeAtomically: Canceled, exit 12); inside a ReadingScope (reading and computing:
-/// nothing is written yet) the process ends at once with exit 12.
-struct CancellableCommand {
-  CancellableCommand() {
-    gRunning = &ctx;
-    setProcessCancelFlag(ctx.cancelToken().flag());
-    std::signal(SIGINT, onSignal);
-    std::signal(SIGTERM, onSignal);
-  }
-  ~CancellableCommand() {
-    setProcessCancelFlag(nullptr);
-    gRunning = nullptr;
-  }
-  CancellableCommand(const CancellableCommand&) = delete;
-  CancellableCommand& operator=(const CancellableCommand&) = delete;
   RunContext ctx;
 };
 
@@ -281,6 +218,14 @@ void removeStaleFiles(const std::vector<std::string>& outputs, bool quiet) {
 int runMesh(const MeshOptions& o) {
   auto params = buildParameters(o);
   if (!params) return fail(params.status());
+  if (o.memoryEstimate) {  // for `batch` and the Snakemake workflow: the memory to plan for
+    auto volume = readNamedLabelMap(o.input, o.labelNames);
+    if (!volume) return fail(volume.status());
+    const int threads = resolveThreads(params->run.threads);
+    std::fputs(cli::memoryEstimateJson(o.input, estimateRunMemory(volume.value(), params.value()),
+                                       threads).c_str(), stdout);
+    return 0;
+  }
   if (o.outputs.empty() && o.report.empty() && o.saveParameters.empty())
     return fail({ErrorCode::InvalidArgument, "Nothing to write: give at least one -o OUTPUT."});
   if (Status s = checkOutputs(o.outputs, params.value(), {o.report, o.saveParameters}); !s)
@@ -475,201 +420,6 @@ int runOptimize(const std::string& meshPath, const std::string& labelsPath, cons
   return writeRunOutputs(result.value(), params.value(), o, meshPath, progress, run);
 }
 
-int runInfo(const std::string& input, const std::string& labelNames, bool asJson) {
-  auto volume = readNamedLabelMap(input, labelNames);
-  if (!volume) return fail(volume.status());
-  const LabelVolume& v = volume.value();
-  const LabelMapSummary s = summarizeLabelMap(v);
-  if (asJson) {
-    std::ostringstream os;
-    os << "{\n  \"path\": \"" << input << "\",\n  \"dims\": [" << v.dims[0] << ", " << v.dims[1]
-       << ", " << v.dims[2] << "],\n  \"spacing\": [" << v.spacing[0] << ", " << v.spacing[1]
-       << ", " << v.spacing[2] << "],\n  \"origin\": [" << v.origin[0] << ", " << v.origin[1]
-       << ", " << v.origin[2] << "],\n  \"direction\": [";
-    for (int i = 0; i < 9; ++i) os << v.direction[i] << (i < 8 ? ", " : "");
-    os << "],\n  \"labels\": [";
-    for (size_t i = 0; i < s.labels.size(); ++i) {
-      const auto& l = s.labels[i];
-      os << (i ? ",\n" : "\n") << "    {\"id\": " << l.id << ", \"name\": \"" << jsonText(l.name)
-         << "\", \"voxels\": " << l.voxels << ", \"volume_mm3\": " << l.volumeMm3
-         << ", \"components\": " << l.components << "}";
-    }
-    os << "\n  ],\n  \"touching_pairs\": " << s.touchingPairs.size()
-       << ",\n  \"triple_cells\": " << s.tripleCells << ",\n  \"quadruple_cells\": "
-       << s.quadrupleCells << "\n}\n";
-    std::fputs(os.str().c_str(), stdout);
-    return 0;
-  }
-  std::printf("%s\n", input.c_str());
-  std::printf("  dims      %d x %d x %d\n", v.dims[0], v.dims[1], v.dims[2]);
-  std::printf("  spacing   %g x %g x %g mm\n", v.spacing[0], v.spacing[1], v.spacing[2]);
-  std::printf("  origin    (%g, %g, %g) LPS\n", v.origin[0], v.origin[1], v.origin[2]);
-  std::printf("  direction [%g %g %g; %g %g %g; %g %g %g]%s\n", v.direction[0], v.direction[1],
-              v.direction[2], v.direction[3], v.direction[4], v.direction[5], v.direction[6],
-              v.direction[7], v.direction[8],
-              v.directionDeterminant() < 0 ? " (left-handed)" : "");
-  std::printf("  %-8s %-28s %12s %14s %10s\n", "label", "name", "voxels", "volume mm^3", "components");
-  for (const auto& l : s.labels)
-    std::printf("  %-8d %-28s %12zu %14.1f %10d\n", l.id, l.name.c_str(), l.voxels, l.volumeMm3,
-                l.components);
-  std::printf("  touching label pairs: %zu; 2x2x2 cells with >=3 labels: %zu, >=4 labels: %zu\n",
-              s.touchingPairs.size(), s.tripleCells, s.quadrupleCells);
-  return 0;
-}
-
-int runQuality(const std::string& meshPath, const std::string& labelsPath,
-               const std::string& rasterPath, bool asJson) {
-  if (!rasterPath.empty() && labelsPath.empty())
-    return fail(Status(ErrorCode::InvalidArgument,
-                       "--raster needs --labels: the mesh is sampled on that label map's voxel grid"));
-  CancellableCommand command;
-  std::optional<ReadingScope> computing(std::in_place);  // nothing written until the raster
-  auto file = readMeshFile(meshPath);
-  if (!file) return fail(file.status());
-  const TetMesh* mesh = &file->mesh;  // the corner tets of a 10-node mesh
-  // 10-node tets: the Jacobian of the quadratic map at the 11 check points of every element.
-  Tet10Jacobian worst;
-  size_t folded = 0;
-  if (file->elementOrder == 2) {
-    const QuadraticTetMesh q = quadraticTets(*mesh, &file->midEdgeNodes);
-    std::array<Vec3, 10> x;
-    for (const auto& t : q.tets) {
-      for (size_t k = 0; k < 10; ++k) x[k] = q.points[size_t(t[k])];
-      const Tet10Jacobian j = tet10Jacobian(x);
-      folded += j.minOverStraight <= 0;
-      worst.minOverStraight = std::min(worst.minOverStraight, j.minOverStraight);
-      worst.minOverMax = std::min(worst.minOverMax, j.minOverMax);
-    }
-  }
-  RunContext& ctx = command.ctx;
-  const QualityReport q = computeQuality(*mesh, ctx);
-  FidelityReport fr;
-  const bool withFidelity = !labelsPath.empty();
-  if (withFidelity) {
-    auto labels = readLabelMap(labelsPath);
-    if (!labels) return fail(labels.status());
-    fr = computeFidelity(labels.value(), *mesh, ctx);
-    if (!rasterPath.empty()) {
-      const LabelVolume raster = rasterizeMesh(labels.value(), *mesh);
-      computing.reset();  // a signal from here on stops the write before its rename
-      if (Status st = writeLabelMap(raster, rasterPath); !st) return fail(st);
-    }
-  }
-  computing.reset();
-  if (asJson) {
-    std::string text = "{\n\"element_order\": " + std::to_string(file->elementOrder) +
-                       ",\n\"quality\": " + qualityReportToJson(q, true);
-    if (file->elementOrder == 2) {
-      char buf[256];
-      std::snprintf(
-          buf, sizeof buf,
-          ",\n\"quadratic\": {\"quality_of\": \"corner tets\", \"min_jacobian_fraction\": "
-          "%.17g, \"worst_scaled_jacobian\": %.17g, \"folded_elements\": %zu}",
-          worst.minOverStraight, worst.minOverMax, folded);
-      text += buf;
-    }
-    if (withFidelity) text += ",\n\"fidelity\": " + fidelityReportToJson(fr);
-    text += "\n}\n";
-    std::fputs(text.c_str(), stdout);
-  } else {
-    std::printf("%s: %zu vertices, %zu tets\n", meshPath.c_str(), mesh->points.size(), mesh->tets.size());
-    if (file->elementOrder == 2)
-      std::printf(
-          "10-node tets: the figures below are of their corner (4-node) tets. Quadratic "
-          "Jacobian at the 4 corners, 6 mid-edge nodes and centroid: smallest det J %.4f x "
-          "the straight-sided value, worst scaled Jacobian (min/max det J) %.4f, %zu "
-          "element(s) folded (det J <= 0)\n",
-          worst.minOverStraight, worst.minOverMax, folded);
-    std::fputs(qualityReportToText(q).c_str(), stdout);
-    if (withFidelity) std::fputs(fidelityReportToText(fr).c_str(), stdout);
-  }
-  return 0;
-}
-
-int runPhantom(const std::string& output, double voxelSize, bool hip, const CLI::Option* scale,
-               double scaleValue) {
-  if (!hip && scale->count() > 0)
-    return fail({ErrorCode::InvalidArgument, "--scale is for the hip phantom: add --hip (the "
-                                             "femur phantom takes --voxel-size)"});
-  if (hip && voxelSize > 0)
-    return fail({ErrorCode::InvalidArgument, "--voxel-size is for the femur phantom: the hip "
-                                             "phantom takes --scale (0.5: 256 x 256 x 200 voxels)"});
-  CancellableCommand command;
-  LabelVolume v;
-  {
-    ReadingScope computing;  // nothing written yet: a signal ends the process at once
-    if (hip) {
-      HipPhantomOptions ho;
-      if (scale->count() > 0) ho.scale = scaleValue;
-      v = makeHipPhantom(ho);
-    } else {
-      PhantomOptions po;
-      if (voxelSize > 0) po.voxelSize = voxelSize;
-      v = makePhantom(po);
-    }
-  }
-  if (Status s = writeLabelMap(v, output); !s) return fail(s);
-  std::fprintf(stderr, "wrote %s (%d x %d x %d voxels, %zu materials)\n", output.c_str(), v.dims[0],
-               v.dims[1], v.dims[2], v.materials.size());
-  return 0;
-}
-
-/// `femesher medial-axis`: the Integer Medial Axis the mesh run computes, as a label image on the
-/// run's working grid (the labelled box plus a margin) in the input's physical space: each voxel
-/// holds the label whose axis passes through it (-1 elsewhere; background 0 included).
-int runMedialAxis(const std::string& input, const std::string& output, const std::string& labelText,
-                  const std::string& prune, double gamma, double gammaConstant) {
-  MeshingParameters p;
-  p.sizing.mode = SizingMode::Adaptive;
-  if (!prune.empty() && !parseMedialAxisPruning(prune, p.sizing.pruning))
-    return fail({ErrorCode::InvalidArgument,
-                 "--prune '" + prune + "': use none, constant, linear, sqrt or constant-linear"});
-  if (gamma >= 0) p.sizing.gamma = gamma;
-  if (gammaConstant >= 0) p.sizing.gammaConstant = gammaConstant;
-  long label = 0;
-  if (!labelText.empty()) {
-    char* end = nullptr;
-    label = std::strtol(labelText.c_str(), &end, 10);
-    if (!end || *end != '\0')
-      return fail({ErrorCode::InvalidArgument, "--label '" + labelText + "' is not an integer"});
-  }
-  CancellableCommand command;
-  std::optional<ReadingScope> computing(std::in_place);  // nothing written until the image
-  auto volume = readLabelMap(input);
-  if (!volume) return fail(volume.status());
-  RunContext& ctx = command.ctx;
-  LabelVolume out;
-  size_t voxels = 0;
-  if (Status s = runGuarded([&] {
-        MeshingRun run(volume.value(), p, ctx);
-        run.runThrough(StageId::MedialAxis);
-        const PreprocessedVolume& grid = run.state().grid;
-        const LabelMedialAxes& axes = *run.state().medialAxes;
-        out = run.workingGridGeometry();
-        out.labels.assign(grid.voxelCount(), -1);
-        for (size_t a = 0; a < axes.labels.size(); ++a) {
-          const int32_t user = grid.userLabel[size_t(axes.labels[a])];
-          if (!labelText.empty() && user != label) continue;
-          for (uint32_t v : axes.axes[a].voxels) out.labels[v] = user;
-          voxels += axes.axes[a].voxels.size();
-        }
-        if (!labelText.empty() &&
-            std::find(grid.userLabel.begin(), grid.userLabel.end(), int32_t(label)) ==
-                grid.userLabel.end())
-          throw Error(ErrorCode::InvalidArgument,
-                      "--label " + labelText + ": " + input + " has no meshed material with that "
-                      "label (see `femesher info " + input + "`).");
-      });
-      !s)
-    return fail(s);
-  std::fprintf(stderr, "%zu medial voxels (pruning %s, gamma %g)\n", voxels,
-               medialAxisPruningName(p.sizing.pruning), p.sizing.gamma);
-  computing.reset();  // a signal from here on stops the write before its rename
-  if (Status s = writeLabelMap(out, output); !s) return fail(s);
-  std::fprintf(stderr, "wrote %s\n", output.c_str());
-  return 0;
-}
-
 /// `femesher sizing`: the adaptive sizing field (target edge length, mm) as a float image: the
 /// field a mesh run with the same parameters uses, on its working grid (the labelled box plus a
 /// margin), placed in the input's physical space.
@@ -718,6 +468,9 @@ void addMeshOptions(CLI::App* cmd, MeshOptions& o, bool positionalOutput) {
                   "Colour table naming the labels: 3D Slicer .ctbl/.txt or .csv, or an ITK-SNAP "
                   "label description file (material.<label>.name overrides it)");
   cmd->add_flag("-q,--quiet", o.quiet, "Only warnings and errors");
+  if (!positionalOutput)
+    cmd->add_flag("--memory-estimate", o.memoryEstimate,
+                  "Print the run's memory estimate (JSON) and exit without meshing");
   for (const auto& d : parameterDescriptors()) {
     const std::string key = d.key;
     if (key == "threads" || key == "seed") continue;  // dedicated options above
@@ -780,7 +533,7 @@ int parseFailure(CLI::App& app, const CLI::ParseError& e) {
 
 int main(int argc, char** argv) {
   // Slicer runs CLI modules as `femesher [--flags] input output` (no sub-command).
-  static const std::vector<std::string> commands = {"mesh", "quality", "info", "phantom",
+  static const std::vector<std::string> commands = {"mesh", "batch", "quality", "info", "phantom",
                                                     "medial-axis", "sizing", "optimize",
                                                     "parameters", "--xml", "--version", "-h",
                                                     "--help"};
@@ -789,11 +542,11 @@ int main(int argc, char** argv) {
     if (std::find(commands.begin(), commands.end(), argv[i]) != commands.end()) slicerStyle = false;
   // A misspelt command ("mseh") would otherwise be taken for Slicer's input file.
   if (slicerStyle && argv[1][0] != '-' && !fs::exists(argv[1])) {
-    const std::vector<std::string> names(commands.begin(), commands.begin() + 8);
+    const std::vector<std::string> names(commands.begin(), commands.begin() + 9);
     if (std::string hint = didYouMean(argv[1], names); !hint.empty())
       return fail({ErrorCode::InvalidArgument,
                    std::string("Unknown command '") + argv[1] + "'." + hint +
-                       " Commands: mesh, quality, info, phantom, medial-axis, sizing, optimize, "
+                       " Commands: mesh, batch, quality, info, phantom, medial-axis, sizing, optimize, "
                        "parameters (see femesher --help)."});
   }
   // Bare boolean flags (`--voxel_refinement`, `--no_voxel_refinement`) become `--flag=true`.
@@ -825,6 +578,9 @@ int main(int argc, char** argv) {
 
   auto* mesh = app.add_subcommand("mesh", "Mesh a label map");
   addMeshOptions(mesh, meshOpts, false);
+
+  cli::BatchOptions batchOpts;
+  auto* batch = cli::addBatchCommand(app, batchOpts);
 
   std::string qualityMesh, qualityLabels, qualityRaster;
   bool qualityJson = false;
@@ -909,11 +665,12 @@ int main(int argc, char** argv) {
   }
   try {
     if (*mesh) return runMesh(meshOpts);
+    if (*batch) return cli::runBatch(batchOpts);
     if (*optimizeCmd) return runOptimize(optMesh, optLabels, optOpts);
-    if (*quality) return runQuality(qualityMesh, qualityLabels, qualityRaster, qualityJson);
-    if (*info) return runInfo(infoInput, infoNames, infoJson);
-    if (*phantom) return runPhantom(phantomOut, phantomVoxel, phantomHip, phantomScaleOpt, phantomScale);
-    if (*medial) return runMedialAxis(maInput, maOutput, maLabel, maPrune, maGamma, maGammaConstant);
+    if (*quality) return cli::runQuality(qualityMesh, qualityLabels, qualityRaster, qualityJson);
+    if (*info) return cli::runInfo(infoInput, infoNames, infoJson);
+    if (*phantom) return cli::runPhantom(phantomOut, phantomVoxel, phantomHip, phantomScaleOpt, phantomScale);
+    if (*medial) return cli::runMedialAxis(maInput, maOutput, maLabel, maPrune, maGamma, maGammaConstant);
     if (*sizingCmd) return runSizing(szInput, szOutput, szOpts);
     if (*params && paramsJson) {
       std::printf("%s\n", parameterDescriptorsToJson().c_str());
