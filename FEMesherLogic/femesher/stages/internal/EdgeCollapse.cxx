@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Optimize stage: collapse of a bad tet's short edge and interior coarsening (see
-// collapseShortEdge and coarsenInterior in OptimizeEditor.h).
+// Optimize stage: collapse of a bad tet's edge (short, or checked against the facet distance)
+// and interior coarsening (see collapseEdge and coarsenInterior in OptimizeEditor.h).
 #include <femesher/VecMath.h>
 #include <femesher/stages/internal/OptimizeEditor.h>
 
