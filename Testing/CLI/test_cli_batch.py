@@ -148,6 +148,19 @@ for case in GOOD:
         check(False, "%s: meshio reads the meshes (%s)" % (case, e))
     check(c.get("worst_dihedral_deg") is not None and c.get("min_dice") is not None
           and c.get("dice"), "%s: worst angle, Dice per label in the summary" % case)
+# The lowest Dice of a case is over its labels of >= 1,000 voxels when it has any (example_seg has
+# labels of a few voxels whose Dice is low by size alone), the lowest over all labels otherwise.
+with open(os.path.join(OUT, "example_seg", "report.json")) as f:
+    mats = json.load(f)["fidelity"]["materials"]
+big = [m for m in mats if m["voxels"] >= 1000 and m["tets"] > 0]
+check(big and [m for m in mats if 0 < m["voxels"] < 1000 and m["tets"] > 0
+               and m["dice"] < min(b["dice"] for b in big)],
+      "example_seg has small labels below its big ones' Dice (the case this checks)")
+low = min(big, key=lambda m: m["dice"])
+check(s["example_seg"]["min_dice_label"] == str(low["label"])
+      and abs(s["example_seg"]["min_dice"] - low["dice"]) < 1e-9,
+      "example_seg's lowest Dice is its lowest label of >= 1,000 voxels (%s, %s; summary %s, %s)"
+      % (low["label"], low["dice"], s["example_seg"]["min_dice_label"], s["example_seg"]["min_dice"]))
 check(s["cgal_420"]["status"] == "poor_elements", "a poor_elements run shows as such")
 check(any("13 (below min_voxels)" in m for m in s["example_seg"]["missing_labels"]),
       "example_seg's dropped label 13 is a missing label")
