@@ -30,23 +30,26 @@ struct TetFrame {
   double g[4][3];          ///< gradients of λ1..λ3 (row 0 unused)
   bool keepOnFace[4];      ///< a point on face f belongs to this tet
   bool flat = false;       ///< no interior: contains nothing
-  bool contains(const Vec3& p) const {
+  /// The barycentric coordinates λ0..λ3 of p.
+  void coordinates(const Vec3& p, double l[4]) const {
     const double px = p[0] - a[0], py = p[1] - a[1], pz = p[2] - a[2];
-    const double l1 = g[1][0] * px + g[1][1] * py + g[1][2] * pz;
-    const double l2 = g[2][0] * px + g[2][1] * py + g[2][2] * pz;
-    const double l3 = g[3][0] * px + g[3][1] * py + g[3][2] * pz;
-    return ok(l1, 1) && ok(l2, 2) && ok(l3, 3) && ok(1.0 - l1 - l2 - l3, 0);
+    l[1] = g[1][0] * px + g[1][1] * py + g[1][2] * pz;
+    l[2] = g[2][0] * px + g[2][1] * py + g[2][2] * pz;
+    l[3] = g[3][0] * px + g[3][1] * py + g[3][2] * pz;
+    l[0] = 1.0 - l[1] - l[2] - l[3];
+  }
+  bool contains(const Vec3& p) const {
+    double l[4];
+    coordinates(p, l);
+    return ok(l[1], 1) && ok(l[2], 2) && ok(l[3], 3) && ok(l[0], 0);
   }
   bool ok(double l, int f) const { return l > kBaryTol || (l >= -kBaryTol && keepOnFace[f]); }
   /// Over the unit cube centred at c, each barycentric coordinate lies within reach[k] of its
   /// value at c: 1 when the whole cube is inside the tet (every point of it is contained), -1
   /// when no point of it is, 0 when the cube may straddle the tet's boundary.
   int cube(const Vec3& c) const {
-    const double px = c[0] - a[0], py = c[1] - a[1], pz = c[2] - a[2];
-    const double l1 = g[1][0] * px + g[1][1] * py + g[1][2] * pz;
-    const double l2 = g[2][0] * px + g[2][1] * py + g[2][2] * pz;
-    const double l3 = g[3][0] * px + g[3][1] * py + g[3][2] * pz;
-    const double l[4] = {1.0 - l1 - l2 - l3, l1, l2, l3};
+    double l[4];
+    coordinates(c, l);
     bool inside = true;
     for (int k = 0; k < 4; ++k) {
       if (l[k] + reach[k] < -kBaryTol) return -1;
