@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One command from a fresh Debian 12 machine to a mesh: installs the packages, builds FEMesher and
-# meshes the built-in hip phantom. Outputs go to ./out/phantom/.
+# meshes the built-in proximal-femur phantom (`femesher phantom`; `--hip` is the clinical-size one). Outputs go to ./out/phantom/.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
