@@ -464,6 +464,10 @@ std::string memoryEstimateJson(const std::string& input, const MemoryEstimate& e
                {"per_process_bytes", perProcess},
                {"request_mem_mb", uintmax_t(requestMb)},
                {"estimate_factor", kMemoryEstimateFactor},
+               {"estimated_seconds", e.seconds},
+               {"request_runtime_min",
+                uintmax_t(std::ceil(std::max(kRuntimeRequestMinimumMinutes,
+                                             kRuntimeRequestFactor * e.seconds / 60)))},
                {"available_bytes", e.availableBytes},
                {"available_source", e.availableSource}})
              .dump(1) +

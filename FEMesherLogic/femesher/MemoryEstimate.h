@@ -3,8 +3,9 @@
 /// \file MemoryEstimate.h
 /// Before a run: the peak resident memory of the run's process tree (the process and TetGen's
 /// forked children), estimated from the label map and the parameters, against the memory the
-/// machine offers. `runPipeline` warns (on the run context: stderr in the CLI, the report's
-/// `warnings`) when the estimate exceeds what is available, and the report holds both figures
+/// machine offers; and a rough wall time for schedulers. `runPipeline` warns (on the run context:
+/// stderr in the CLI, the report's `warnings`) when the estimate exceeds what is available, and the
+/// report holds both figures
 /// (`memory_estimate`).
 ///
 /// The model: the tree's peak is in VolumeMesh, where k = min(threads, materials) TetGen children
@@ -28,12 +29,21 @@ namespace femesher {
 
 /// The measured peaks of the calibration volumes lie within [estimate / factor, estimate x factor].
 constexpr double kMemoryEstimateFactor = 1.5;
+/// What a scheduler job asks for: this many times MemoryEstimate::seconds, at least
+/// kRuntimeRequestMinimumMinutes (measured runs took up to 2.1x the estimate; other machines are
+/// slower or faster).
+constexpr double kRuntimeRequestFactor = 3.0;
+constexpr double kRuntimeRequestMinimumMinutes = 10.0;
 
 struct MemoryEstimate {
   size_t gridVoxels = 0;       ///< the labelled box plus the working grid's margin
   size_t materials = 0;        ///< meshed materials (background and excluded ones not counted)
   size_t interfaceFaces = 0;   ///< voxel faces between two different labels (background too)
   uintmax_t peakBytes = 0;     ///< estimated peak resident size of the process tree
+  /// Estimated wall seconds of the run at its thread count on a machine like the project's
+  /// (2 cores); rough (measured runs took 0.85x to 2.1x of it): schedulers ask for
+  /// kRuntimeRequestFactor times it.
+  double seconds = 0;
   uintmax_t availableBytes = 0;  ///< what the machine offers the run; 0 when unknown
   std::string availableSource;   ///< where availableBytes comes from
   bool exceeds() const { return availableBytes > 0 && peakBytes > availableBytes; }

@@ -13,8 +13,8 @@ import re
 import shutil
 import tempfile
 
-from workflow_common import (Checker, check_outputs, expected_memory, job_memory, make_cases,
-                             need_tools, snakemake)
+from workflow_common import (Checker, check_outputs, expected_memory, expected_request, job_memory,
+                             job_resource, make_cases, need_tools, snakemake)
 
 check = Checker()
 TMP = tempfile.mkdtemp(prefix="workflow_local_", dir=os.environ.get("FEMESHER_TMP"))
@@ -26,6 +26,10 @@ if need_tools(check, ["snakemake"]) and make_cases(check, os.path.join(TMP, "in"
     check(len(re.findall(r"^rule mesh:", log, re.M)) == 3, "three mesh jobs ran")
     check(job_memory(log) == expected_memory(os.path.join(TMP, "in")),
           "each mesh job asks for the memory of its estimate: %s MB" % job_memory(log))
+    runtimes = job_resource(log, "runtime")
+    check(runtimes == expected_request(os.path.join(TMP, "in"), "request_runtime_min") and
+          all(m >= 10 for m in runtimes.values()),
+          "each mesh job asks for the minutes of its time estimate: %s" % runtimes)
     check_outputs(check, os.path.join(TMP, "cohort"))
     p = snakemake(TMP, "in", "cohort", "--cores", "2")
     check(p.returncode == 0 and "Nothing to be done" in p.stdout + p.stderr,

@@ -72,25 +72,35 @@ def snakemake(workdir, cases, outdir, *extra, env=None, timeout=1200):
                           env=e, stdin=subprocess.DEVNULL)
 
 
-def job_memory(log):
-    """{case: mem_mb} of the mesh jobs in Snakemake's output."""
+def job_resource(log, name="mem_mb"):
+    """{case: resource `name`} of the mesh jobs in Snakemake's output."""
     jobs = {}
     for block in re.split(r"^\[[^\]]+\]$", log, flags=re.M):
         case = re.search(r"^\s+wildcards: case=(\S+)", block, re.M)
-        mem = re.search(r"^\s+resources: .*\bmem_mb=(\d+)", block, re.M)
-        if re.search(r"^rule mesh:", block, re.M) and case and mem:
-            jobs[case.group(1)] = int(mem.group(1))
+        value = re.search(r"^\s+resources: .*\b%s=(\d+)" % name, block, re.M)
+        if re.search(r"^rule mesh:", block, re.M) and case and value:
+            jobs[case.group(1)] = int(value.group(1))
     return jobs
 
 
-def expected_memory(folder):
-    """{case: MB}: `femesher mesh --memory-estimate --threads 1`'s request (min_mem_mb=1)."""
+def job_memory(log):
+    """{case: mem_mb} of the mesh jobs in Snakemake's output."""
+    return job_resource(log, "mem_mb")
+
+
+def expected_request(folder, key="request_mem_mb"):
+    """{case: the estimate's `key`}: `femesher mesh --memory-estimate --threads 1`."""
     out = {}
     for case in CASES:
         p = subprocess.run([CLI, "mesh", os.path.join(folder, case + ".nrrd"), "--threads", "1",
                             "--memory-estimate"], capture_output=True, text=True, check=True)
-        out[case] = max(1, json.loads(p.stdout)["request_mem_mb"])
+        out[case] = max(1, json.loads(p.stdout)[key])
     return out
+
+
+def expected_memory(folder):
+    """{case: MB}: `femesher mesh --memory-estimate --threads 1`'s request (min_mem_mb=1)."""
+    return expected_request(folder, "request_mem_mb")
 
 
 def check_outputs(check, outdir):
