@@ -148,7 +148,7 @@ Junctions findJunctions(const IndicatorField& field, const SizingFunction& sizin
           }
         }
     }
-  });
+  }, std::max(1, nz));  // one chunk per plane of cells: junction cells cluster in a few
   ctx.checkCancel();
   for (size_t k = 0; k < perSlab.size(); ++k) {
     out.candidates.insert(out.candidates.end(), perSlab[k].begin(), perSlab[k].end());
