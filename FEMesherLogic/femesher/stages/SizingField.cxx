@@ -168,7 +168,7 @@ void limitByCurvature(const LabelVolume& volume, const IndicatorField& f, double
           if (h < h0) field.h[v] = float(std::max(h, field.hMin));
         }
     }
-  });
+  }, nz);  // one chunk per plane: only interface voxels cost, and they cluster
 }
 
 }  // namespace
@@ -304,25 +304,34 @@ int limitGradation(const Grid3& grid, std::vector<float>& h, double L, RunContex
     // moves); the loop repeats only to confirm it (or to finish paths bent by the grid border).
     for (int sign : {1, -1}) {
       ++sweeps;
-      for (int t = 0; t <= (ny - 1) + 2 * (nz - 1); ++t) {
+      // Rows grouped in blocks of kBlock x kBlock (j, k): block (J, K) reads only blocks
+      // (J - 1, K) and (J - 1 .. J + 1, K - 1), so the blocks on one block wavefront J + 2 K are
+      // independent, and inside a block the rows go in the sweep's own order. Each row still
+      // reads exactly the rows the sequential sweep has finished before it: the same result,
+      // with a few dozen synchronisations per sweep instead of one per row wavefront (too short
+      // for a second thread to join).
+      constexpr int kBlock = 16;
+      const int nJ = (ny + kBlock - 1) / kBlock, nK = (nz + kBlock - 1) / kBlock;
+      for (int t = 0; t <= (nJ - 1) + 2 * (nK - 1); ++t) {
         if (ctx) ctx->checkCancel();
-        const int kLo = std::max(0, (t - (ny - 1) + 1) / 2), kHi = std::min(nz - 1, t / 2);
+        const int kLo = std::max(0, (t - (nJ - 1) + 1) / 2), kHi = std::min(nK - 1, t / 2);
         if (kHi < kLo) continue;
-        auto rows = [&](int lo, int hi) {
+        auto blocks = [&](int lo, int hi) {
           bool any = false;
-          for (int kk = lo; kk < hi; ++kk) {
-            const int jj = t - 2 * kk;
-            any |= sweepRow(sign, sign > 0 ? jj : ny - 1 - jj, sign > 0 ? kk : nz - 1 - kk);
+          for (int K = lo; K < hi; ++K) {
+            const int J = t - 2 * K;
+            for (int kk = K * kBlock; kk < std::min(nz, (K + 1) * kBlock); ++kk)
+              for (int jj = J * kBlock; jj < std::min(ny, (J + 1) * kBlock); ++jj)
+                any |= sweepRow(sign, sign > 0 ? jj : ny - 1 - jj, sign > 0 ? kk : nz - 1 - kk);
           }
           if (any) changed.store(true, std::memory_order_relaxed);
         };
-        // Thousands of short wavefronts: oneTBB's pool, not a thread start per wavefront.
-        if (arena.max_concurrency() == 1 || kHi - kLo < 8)
-          rows(kLo, kHi + 1);
+        if (arena.max_concurrency() == 1 || kHi == kLo)
+          blocks(kLo, kHi + 1);
         else
           arena.execute([&] {
-            tbb::parallel_for(tbb::blocked_range<int>(kLo, kHi + 1, 4),
-                              [&](const tbb::blocked_range<int>& r) { rows(r.begin(), r.end()); });
+            tbb::parallel_for(tbb::blocked_range<int>(kLo, kHi + 1, 1),
+                              [&](const tbb::blocked_range<int>& r) { blocks(r.begin(), r.end()); });
           });
       }
     }
