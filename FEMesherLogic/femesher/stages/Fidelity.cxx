@@ -38,6 +38,8 @@
 #include <sstream>
 #include <unordered_map>
 
+#include <tbb/parallel_sort.h>
+
 namespace femesher {
 
 namespace {
@@ -54,6 +56,9 @@ using KNN = CGAL::Orthogonal_k_neighbor_search<KdTraits>;
 constexpr size_t kMaxSamples = 1000000;  ///< per direction
 constexpr int kMaxRing = 12;             ///< voxels searched around a sample before the kd-tree
 constexpr int kOverlapSamples = 4;       ///< sub-samples per axis in voxels the mesh surface cuts
+/// Chunks of the per-sample distance loops (their samples cost unevenly; no reduction depends on
+/// the chunking).
+constexpr int kSampleChunks = 64;
 
 DistanceStats stats(std::vector<double>& d, size_t population) {
   DistanceStats s;
@@ -61,7 +66,7 @@ DistanceStats stats(std::vector<double>& d, size_t population) {
   s.population = population;
   s.sampled = d.size() < population;
   if (d.empty()) return s;
-  std::sort(d.begin(), d.end());
+  tbb::parallel_sort(d.begin(), d.end());  // same order as std::sort: doubles, no ties to break
   double sum = 0;
   for (double x : d) sum += x;
   s.mean = sum / double(d.size());
@@ -126,9 +131,19 @@ std::vector<int32_t> distinctLabels(const LabelVolume& labels, const TetMesh& me
       }
     }
   });
+  // The tets' distinct labels, per chunk (a handful each), not a sort of every tet's label.
+  constexpr int kTetChunks = 64;
+  auto tetFound = std::vector<std::vector<int32_t>>(size_t(kTetChunks));
+  parallelFor(mesh.tetLabels.size(), threads, [&](size_t b, size_t e, int c) {
+    std::vector<int32_t>& f = tetFound[size_t(c)];
+    for (size_t t = b; t < e; ++t) {
+      const int32_t l = mesh.tetLabels[t];
+      if ((f.empty() || f.back() != l) && std::find(f.begin(), f.end(), l) == f.end()) f.push_back(l);
+    }
+  }, kTetChunks);
   std::vector<int32_t> ids{0};
   for (const auto& f : found) ids.insert(ids.end(), f.begin(), f.end());
-  ids.insert(ids.end(), mesh.tetLabels.begin(), mesh.tetLabels.end());
+  for (const auto& f : tetFound) ids.insert(ids.end(), f.begin(), f.end());
   std::sort(ids.begin(), ids.end());
   ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
   if (ids.size() > 65535)
@@ -321,13 +336,15 @@ struct FaceGeometry {
 };
 
 /// The mesh points in the canonical frame (mm).
-std::vector<Vec3> canonicalPoints(const LabelVolume& labels, const TetMesh& mesh) {
+std::vector<Vec3> canonicalPoints(const LabelVolume& labels, const TetMesh& mesh, int threads) {
   const Vec3& sp = labels.spacing;
   std::vector<Vec3> can(mesh.points.size());
-  for (size_t i = 0; i < can.size(); ++i) {
-    const Vec3 ix = labels.physicalToIndex(mesh.points[i]);
-    can[i] = {ix[0] * sp[0], ix[1] * sp[1], ix[2] * sp[2]};
-  }
+  parallelFor(can.size(), threads, [&](size_t b, size_t e, int) {
+    for (size_t i = b; i < e; ++i) {
+      const Vec3 ix = labels.physicalToIndex(mesh.points[i]);
+      can[i] = {ix[0] * sp[0], ix[1] * sp[1], ix[2] * sp[2]};
+    }
+  });
   return can;
 }
 
@@ -415,7 +432,7 @@ size_t ringSearchDistances(const LabelVolume& labels, const BoundaryFaces& faces
       else
         ++farSamples;
     }
-  });
+  }, kSampleChunks);
   return farSamples;
 }
 
@@ -445,7 +462,7 @@ void kdTreeDistances(const LabelVolume& labels, const BoundaryFaces& faces,
       }
       d[s] = std::sqrt(best) / voxelSize;
     }
-  });
+  }, kSampleChunks);
 }
 
 /// Distances mesh -> labels: from the interface samples to the nearest boundary face.
@@ -494,7 +511,7 @@ DistanceStats labelsToMeshDistances(const LabelVolume& labels, const BoundaryFac
       const Vec3& c = centres[k];
       d[k] = std::sqrt(aabb.squared_distance(SPoint(c[0], c[1], c[2]))) / voxelSize;
     }
-  });
+  }, kSampleChunks);
   checkCancel(ctx);
   return stats(d, faces.total);
 }
@@ -518,7 +535,9 @@ FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh, R
   const std::vector<InterfaceTriangle> tris = extractInterfaces(mesh);
   checkCancel(ctx);
   std::vector<uint16_t> tetIndex(mesh.tets.size());
-  for (size_t t = 0; t < tetIndex.size(); ++t) tetIndex[t] = index(mesh.tetLabels[t]);
+  parallelFor(tetIndex.size(), threads, [&](size_t b, size_t e, int) {
+    for (size_t t = b; t < e; ++t) tetIndex[t] = index(mesh.tetLabels[t]);
+  });
   {
     const std::vector<uint16_t> meshLabel =
         rasterize(labels, mesh, tetIndex, index(0), threads, ctx);
@@ -544,7 +563,7 @@ FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh, R
   }
 
   // Distances both ways, in the canonical frame.
-  const std::vector<Vec3> can = canonicalPoints(labels, mesh);
+  const std::vector<Vec3> can = canonicalPoints(labels, mesh, threads);
   const FaceGeometry geom{sp};
   rep.meshToLabels =
       meshToLabelsDistances(labels, faces, geom, rep.voxelSize, tris, can, threads, ctx);

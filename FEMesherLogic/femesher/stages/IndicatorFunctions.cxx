@@ -14,6 +14,19 @@ namespace {
 
 constexpr float kInf = std::numeric_limits<float>::max() / 4;
 
+/// Chunks of the loops over lines and voxels: more than threads, so that a thread slowed by other
+/// work (or a chunk of costly lines) does not hold the others up. Nothing is reduced across
+/// chunks, so the count does not change any result.
+constexpr int kChunks = 64;
+
+/// body(p) for every voxel index p in [0, n), in parallel.
+template <class Fn>
+void forEachVoxel(size_t n, int threads, Fn&& body) {
+  parallelFor(n, threads, [&](size_t b, size_t e, int) {
+    for (size_t p = b; p < e; ++p) body(p);
+  }, kChunks);
+}
+
 /// 1-D squared distance transform (lower envelope of parabolas, Felzenszwalb & Huttenlocher) on
 /// samples spaced `s` apart: d[q] = min_p f[p] + (s (q - p))^2.
 void distance1d(const float* f, int n, double s, float* d, int* v, double* z) {
@@ -80,7 +93,7 @@ void squaredEdt(std::vector<float>& g, const std::array<int, 3>& dims, const Vec
         distance1d(f.data(), n, spacing[axis], d.data(), v.data(), z.data());
         for (int q = 0; q < n; ++q) g[base + q * st] = d[q];
       }
-    });
+    }, kChunks);
   }
 }
 
@@ -119,7 +132,7 @@ void gaussianBlur(std::vector<float>& g, const std::array<int, 3>& dims, double 
           g[base + q * st] = float(acc);
         }
       }
-    });
+    }, kChunks);
   }
 }
 
@@ -153,7 +166,7 @@ void sparseGaussianBlur(std::vector<float>& g, const std::array<int, 3>& dims, d
             g[base + std::clamp(q + t, 0, n - 1) * st] += kernel[t + r] * in[q];
         }
       }
-    });
+    }, kChunks);
   }
 }
 
@@ -221,7 +234,7 @@ void preserveVolume(std::vector<float>& f, const std::vector<uint8_t>& inside,
                 in += w[oc][0] * sxy[k] + w[oc][1] * sxy[9 + k] + w[oc][2] * sxy[18 + k] > 0;
             r[p] = float(inside[p]) - float(in) / 27.f;
           }
-    });
+    }, kChunks);
     // Smoothing spreads a one-voxel residual over about 2.5 voxels across the surface: scale back.
     constexpr double kSigma = 1.0, kSpread = 2.5066 * kSigma, kDamping = 0.8;
     sparseGaussianBlur(r, dims, kSigma, threads);
@@ -246,14 +259,14 @@ void preserveVolume(std::vector<float>& f, const std::vector<uint8_t>& inside,
               extent += norm > 0 ? std::abs(g[a]) / norm * spacing[a] : spacing[a] / 3;
             r[p] = float(kDamping * kSpread * r[p] * extent);  // f is read here: apply below
           }
-    });
+    }, kChunks);
     parallelFor(n, threads, [&](size_t b, size_t e, int) {
       for (size_t p = b; p < e; ++p) {
         if (r[p] == 0) continue;
         const float v = f[p] + r[p];
         f[p] = inside[p] ? std::max(v, eps) : std::min(v, -eps);
       }
-    });
+    }, kChunks);
   }
 }
 
@@ -454,19 +467,32 @@ IndicatorField computeIndicatorFunctions(const PreprocessedVolume& vol,
   const float eps = float(0.35 * smin);
   const int threads = ctx.threads();
 
-  // Bounding boxes of every label.
+  // Bounding boxes of every label: per chunk of z-planes, then the extremes of the chunks'.
   std::vector<std::array<int, 3>> lo(nLabels, {{vol.dims[0], vol.dims[1], vol.dims[2]}});
   std::vector<std::array<int, 3>> hi(nLabels, {{-1, -1, -1}});
-  for (int k = 0; k < vol.dims[2]; ++k)
-    for (int j = 0; j < vol.dims[1]; ++j)
-      for (int i = 0; i < vol.dims[0]; ++i) {
-        const int l = extended(i, j, k);
-        auto& a = lo[l];
-        auto& b = hi[l];
-        a[0] = std::min(a[0], i); b[0] = std::max(b[0], i);
-        a[1] = std::min(a[1], j); b[1] = std::max(b[1], j);
-        a[2] = std::min(a[2], k); b[2] = std::max(b[2], k);
-      }
+  {
+    std::vector<std::vector<std::array<int, 3>>> clo(kChunks, lo), chi(kChunks, hi);
+    parallelFor(size_t(vol.dims[2]), threads, [&](size_t kb, size_t ke, int c) {
+      auto& cl = clo[size_t(c)];
+      auto& ch = chi[size_t(c)];
+      for (int k = int(kb); k < int(ke); ++k)
+        for (int j = 0; j < vol.dims[1]; ++j)
+          for (int i = 0; i < vol.dims[0]; ++i) {
+            const int l = extended(i, j, k);
+            auto& a = cl[l];
+            auto& b = ch[l];
+            a[0] = std::min(a[0], i); b[0] = std::max(b[0], i);
+            a[1] = std::min(a[1], j); b[1] = std::max(b[1], j);
+            a[2] = std::min(a[2], k); b[2] = std::max(b[2], k);
+          }
+    }, kChunks);
+    for (size_t c = 0; c < clo.size(); ++c)
+      for (int l = 0; l < nLabels; ++l)
+        for (int a = 0; a < 3; ++a) {
+          lo[l][a] = std::min(lo[l][a], clo[c][l][a]);
+          hi[l][a] = std::max(hi[l][a], chi[c][l][a]);
+        }
+  }
 
   const int pad = params.band + int(std::ceil(3 * params.sigma)) + 2;
   double totalVoxels = 0;
@@ -487,33 +513,35 @@ IndicatorField computeIndicatorFunctions(const PreprocessedVolume& vol,
     if (n == 0) continue;
     ctx.checkCancel();
     std::vector<uint8_t> inside(n);
-    for (int z = 0; z < b.dims[2]; ++z)
-      for (int y = 0; y < b.dims[1]; ++y)
-        for (int x = 0; x < b.dims[0]; ++x)
-          inside[size_t(x) + size_t(b.dims[0]) * (size_t(y) + size_t(b.dims[1]) * z)] =
-              extended(x + b.lo[0], y + b.lo[1], z + b.lo[2]) == m;
     std::vector<float> dOut(n), dIn(n);
-    for (size_t p = 0; p < n; ++p) {
-      dOut[p] = inside[p] ? 0.f : kInf;
-      dIn[p] = inside[p] ? kInf : 0.f;
-    }
+    parallelFor(size_t(b.dims[2]), threads, [&](size_t zb, size_t ze, int) {
+      for (int z = int(zb); z < int(ze); ++z)
+        for (int y = 0; y < b.dims[1]; ++y)
+          for (int x = 0; x < b.dims[0]; ++x) {
+            const size_t p = size_t(x) + size_t(b.dims[0]) * (size_t(y) + size_t(b.dims[1]) * z);
+            const bool in = extended(x + b.lo[0], y + b.lo[1], z + b.lo[2]) == m;
+            inside[p] = in;
+            dOut[p] = in ? 0.f : kInf;
+            dIn[p] = in ? kInf : 0.f;
+          }
+    }, kChunks);
     squaredEdt(dOut, b.dims, vol.spacing, threads);
     ctx.checkCancel();
     squaredEdt(dIn, b.dims, vol.spacing, threads);
     ctx.checkCancel();
     b.f.resize(n);
-    for (size_t p = 0; p < n; ++p) {
+    forEachVoxel(n, threads, [&](size_t p) {
       const float v = inside[p] ? std::sqrt(dIn[p]) - offset : offset - std::sqrt(dOut[p]);
       b.f[p] = std::clamp(v, -bandMm, bandMm);
-    }
+    });
     std::vector<float>().swap(dIn);
     std::vector<float>().swap(dOut);
     // Small labels are smoothed less (sigma <= a quarter of their smallest extent), so a label of
     // a few voxels keeps its volume instead of shrinking to blobs around its voxel centres.
     const int extent = std::min({hi[m][0] - lo[m][0], hi[m][1] - lo[m][1], hi[m][2] - lo[m][2]}) + 1;
     gaussianBlur(b.f, b.dims, std::min(params.sigma, 0.25 * extent), threads);
-    for (size_t p = 0; p < n; ++p)
-      b.f[p] = inside[p] ? std::max(b.f[p], eps) : std::min(b.f[p], -eps);
+    forEachVoxel(n, threads,
+                 [&](size_t p) { b.f[p] = inside[p] ? std::max(b.f[p], eps) : std::min(b.f[p], -eps); });
     if (params.volumeIterations > 0)
       preserveVolume(b.f, inside, b.dims, vol.spacing, eps, params.volumeIterations, threads);
     doneVoxels += double(n);

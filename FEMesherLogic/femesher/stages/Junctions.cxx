@@ -148,7 +148,7 @@ Junctions findJunctions(const IndicatorField& field, const SizingFunction& sizin
           }
         }
     }
-  });
+  }, std::max(1, nz));  // one chunk per plane of cells: junction cells cluster in a few
   ctx.checkCancel();
   for (size_t k = 0; k < perSlab.size(); ++k) {
     out.candidates.insert(out.candidates.end(), perSlab[k].begin(), perSlab[k].end());
@@ -207,13 +207,26 @@ Junctions findJunctions(const IndicatorField& field, const SizingFunction& sizin
   std::map<std::array<uint16_t, 4>, std::vector<uint32_t>> lines;
   for (uint32_t i = 0; i < out.particles.size(); ++i)
     if (out.particles[i].count == 3) lines[out.particles[i].labels].push_back(i);
+  struct LineParticle {
+    const std::array<uint16_t, 4>* labels;
+    const std::vector<uint32_t>* ids;
+    uint32_t particle;
+  };
+  std::vector<LineParticle> work;  // the particles of lines of at least three, line by line
+  for (const auto& [labels, ids] : lines)
+    if (ids.size() >= 3)
+      for (uint32_t i : ids) work.push_back({&labels, &ids, i});
   for (int it = 0; it < params.relaxIterations; ++it) {
     ctx.checkCancel();
     std::vector<Vec3> next(out.particles.size());
     for (uint32_t i = 0; i < out.particles.size(); ++i) next[i] = out.particles[i].local;
-    for (const auto& [labels, ids] : lines) {
-      if (ids.size() < 3) continue;
-      for (uint32_t i : ids) {
+    // Every particle's move reads the previous positions only (Jacobi): in parallel, each
+    // writing its own next[i].
+    parallelFor(work.size(), threads, [&](size_t wb, size_t we, int) {
+      for (size_t w = wb; w < we; ++w) {
+        const std::array<uint16_t, 4>& labels = *work[w].labels;
+        const std::vector<uint32_t>& ids = *work[w].ids;
+        const uint32_t i = work[w].particle;
         const JunctionPoint& p = out.particles[i];
         const Vec3 c = canonical(p);
         const double h = params.spacingFactor * sizing(c);
@@ -241,7 +254,7 @@ Junctions findJunctions(const IndicatorField& field, const SizingFunction& sizin
         const uint16_t* l = labels.data();
         if (solveJunction(e, l, 3, x, tol) && leading(field, l, 3, x, 10 * tol)) next[i] = x;
       }
-    }
+    }, 64);
     for (uint32_t i = 0; i < out.particles.size(); ++i) out.particles[i].local = next[i];
     ctx.progress(0.7 + 0.3 * (it + 1) / std::max(1, params.relaxIterations));
   }

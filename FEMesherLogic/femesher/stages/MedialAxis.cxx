@@ -15,6 +15,10 @@ namespace femesher {
 
 namespace {
 
+/// Chunks of the loops whose per-chunk results are concatenated or merged: fixed, so the result
+/// does not depend on the thread count.
+constexpr int kChunks = 64;
+
 struct Box {
   std::array<int, 3> lo{{0, 0, 0}}, hi{{-1, -1, -1}};  // inclusive; empty when hi < lo
   bool empty() const { return hi[0] < lo[0]; }
@@ -25,6 +29,11 @@ struct Box {
     }
     lo = {{std::min(lo[0], i), std::min(lo[1], j), std::min(lo[2], k)}};
     hi = {{std::max(hi[0], i), std::max(hi[1], j), std::max(hi[2], k)}};
+  }
+  void add(const Box& b) {
+    if (b.empty()) return;
+    add(b.lo[0], b.lo[1], b.lo[2]);
+    add(b.hi[0], b.hi[1], b.hi[2]);
   }
 };
 
@@ -69,7 +78,9 @@ MedialAxis imaInBox(const Grid3& grid, const Box& box, InRegion inRegion,
     }
   });
   std::vector<uint8_t> feature(n);
-  for (size_t v = 0; v < n; ++v) feature[v] = region[v] ? 0 : 1;
+  parallelFor(n, threads, [&](size_t b, size_t e, int) {
+    for (size_t v = b; v < e; ++v) feature[v] = region[v] ? 0 : 1;
+  }, kChunks);
   const std::vector<uint32_t> ft = featureTransform(local, feature, threads, ctx);
   feature.clear();
   feature.shrink_to_fit();
@@ -149,11 +160,24 @@ MedialAxis imaInBox(const Grid3& grid, const Box& box, InRegion inRegion,
         }
   }, threads == 1 ? 1 : resolveThreads(threads) * 4);
 
-  for (size_t p = 0; p < n; ++p) {
-    if (!mark[p]) continue;
-    const auto c = local.coords(p);
-    result.voxels.push_back(uint32_t(grid.index(c[0] + lo[0], c[1] + lo[1], c[2] + lo[2])));
-    result.radius.push_back(float(std::sqrt(featureSquaredDistance(local, p, ft[p]))));
+  // The marked voxels in local order, per chunk, concatenated in chunk order.
+  std::vector<MedialAxis> parts(kChunks);
+  parallelFor(n, threads, [&](size_t b, size_t e, int chunk) {
+    MedialAxis& part = parts[size_t(chunk)];
+    for (size_t p = b; p < e; ++p) {
+      if (!mark[p]) continue;
+      const auto c = local.coords(p);
+      part.voxels.push_back(uint32_t(grid.index(c[0] + lo[0], c[1] + lo[1], c[2] + lo[2])));
+      part.radius.push_back(float(std::sqrt(featureSquaredDistance(local, p, ft[p]))));
+    }
+  }, kChunks);
+  size_t total = 0;
+  for (const auto& part : parts) total += part.voxels.size();
+  result.voxels.reserve(total);
+  result.radius.reserve(total);
+  for (const auto& part : parts) {
+    result.voxels.insert(result.voxels.end(), part.voxels.begin(), part.voxels.end());
+    result.radius.insert(result.radius.end(), part.radius.begin(), part.radius.end());
   }
   // Local order (x fastest) maps to ascending global order already, since the box keeps
   // the axis order; no sort needed.
@@ -219,22 +243,29 @@ void checkVolume(const LabelVolume& volume) {
                     " values for " + std::to_string(volume.voxelCount()) + " voxels.");
 }
 
-std::map<int32_t, Box> labelBoxes(const LabelVolume& volume) {
-  std::map<int32_t, Box> boxes;
-  int32_t last = 0;
-  Box* lastBox = nullptr;
-  for (int k = 0; k < volume.dims[2]; ++k)
-    for (int j = 0; j < volume.dims[1]; ++j) {
-      const size_t base = volume.index(0, j, k);
-      for (int i = 0; i < volume.dims[0]; ++i) {
-        const int32_t l = volume.labels[base + i];
-        if (!lastBox || l != last) {
-          lastBox = &boxes[l];
-          last = l;
+std::map<int32_t, Box> labelBoxes(const LabelVolume& volume, int threads) {
+  // Per chunk of z-planes, then merged (a union of boxes: any order gives the same boxes).
+  std::vector<std::map<int32_t, Box>> parts(kChunks);
+  parallelFor(size_t(std::max(0, volume.dims[2])), threads, [&](size_t kb, size_t ke, int chunk) {
+    std::map<int32_t, Box>& boxes = parts[size_t(chunk)];
+    int32_t last = 0;
+    Box* lastBox = nullptr;
+    for (int k = int(kb); k < int(ke); ++k)
+      for (int j = 0; j < volume.dims[1]; ++j) {
+        const size_t base = volume.index(0, j, k);
+        for (int i = 0; i < volume.dims[0]; ++i) {
+          const int32_t l = volume.labels[base + i];
+          if (!lastBox || l != last) {
+            lastBox = &boxes[l];
+            last = l;
+          }
+          lastBox->add(i, j, k);
         }
-        lastBox->add(i, j, k);
       }
-    }
+  }, kChunks);
+  std::map<int32_t, Box> boxes;
+  for (const auto& part : parts)
+    for (const auto& [l, b] : part) boxes[l].add(b);
   return boxes;
 }
 
@@ -244,7 +275,7 @@ MedialAxis computeLabelMedialAxis(const LabelVolume& volume, int32_t label,
                                   const MedialAxisParameters& params, RunContext* ctx) {
   checkParameters(params);
   checkVolume(volume);
-  const auto boxes = labelBoxes(volume);
+  const auto boxes = labelBoxes(volume, params.threads);
   const auto it = boxes.find(label);
   if (it == boxes.end()) return {};
   const auto& labels = volume.labels;
@@ -260,7 +291,7 @@ LabelMedialAxes computeAllMedialAxes(const LabelVolume& volume, const MedialAxis
   LabelMedialAxes out;
   out.grid = gridOf(volume);
   out.unionMask.assign(volume.voxelCount(), 0);
-  const auto boxes = labelBoxes(volume);
+  const auto boxes = labelBoxes(volume, params.threads);
   // Work estimate per label: its box volume.
   double total = 0, done = 0;
   for (const auto& [l, b] : boxes)

@@ -151,18 +151,26 @@ struct Grid {
 /// is given (zero for junction particles). Returns the largest size, at least S.smin.
 double sampleParticles(const std::vector<Particle>& P, const Surface& S,
                        const SizingFunction& sizing, std::vector<Vec3>& pos, std::vector<double>& h,
-                       std::vector<Vec3>* nrm) {
+                       std::vector<Vec3>* nrm, int threads) {
   const size_t n = P.size();
   pos.resize(n);
   h.resize(n);
   if (nrm) nrm->resize(n);
+  // Per particle in parallel; the largest size is a maximum, the same in any order.
+  constexpr int kChunks = 64;
+  std::vector<double> chunkMax(kChunks, S.smin);
+  parallelFor(n, threads, [&](size_t b, size_t e, int c) {
+    double m = S.smin;
+    for (size_t i = b; i < e; ++i) {
+      pos[i] = S.canonical(P[i].local);
+      h[i] = sizing(pos[i]);
+      m = std::max(m, h[i]);
+      if (nrm) (*nrm)[i] = P[i].junction < 0 ? S.normal(P[i].a, P[i].b, P[i].local) : Vec3{0, 0, 0};
+    }
+    chunkMax[size_t(c)] = m;
+  }, kChunks);
   double hMax = S.smin;
-  for (size_t i = 0; i < n; ++i) {
-    pos[i] = S.canonical(P[i].local);
-    h[i] = sizing(pos[i]);
-    hMax = std::max(hMax, h[i]);
-    if (nrm) (*nrm)[i] = P[i].junction < 0 ? S.normal(P[i].a, P[i].b, P[i].local) : Vec3{0, 0, 0};
-  }
+  for (double m : chunkMax) hMax = std::max(hMax, m);
   return hMax;
 }
 
@@ -245,9 +253,9 @@ struct JacobiStep {
   std::vector<int32_t> nearestId;
 
   JacobiStep(const std::vector<Particle>& particles, const Junctions& j, const Surface& s,
-             const SizingFunction& sizing, double kernelScale, double maxStep)
+             const SizingFunction& sizing, double kernelScale, double maxStep, int threads)
       : P(particles), junctions(j), S(s), k(kernelScale), maxStepFactor(maxStep) {
-    const double hMax = sampleParticles(P, S, sizing, pos, h, &nrm);
+    const double hMax = sampleParticles(P, S, sizing, pos, h, &nrm, threads);
     // Cells of the median interaction radius: with an adaptive field hMax can be many times the
     // typical h, and cells that large would hold hundreds of particles each.
     grid.cell = k * median(h, hMax);
@@ -551,20 +559,20 @@ class PopulationControl {
 /// The particles' canonical positions and h (sampleParticles) and a grid over them with cells of
 /// twice the median h.
 void particleGrid(const std::vector<Particle>& P, const Surface& S, const SizingFunction& sizing,
-                  std::vector<Vec3>& pos, std::vector<double>& hs, Grid& grid) {
-  const double hMax = sampleParticles(P, S, sizing, pos, hs, nullptr);
+                  std::vector<Vec3>& pos, std::vector<double>& hs, Grid& grid, int threads) {
+  const double hMax = sampleParticles(P, S, sizing, pos, hs, nullptr, threads);
   grid.cell = 2 * median(hs, hMax);
   grid.build(pos);
 }
 
 /// Result figure: mean distance to the nearest particle on the same interface, relative to h.
 double meanSpacingRatio(const std::vector<Particle>& P, const Surface& S,
-                        const SizingFunction& sizing, size_t nFixed) {
+                        const SizingFunction& sizing, size_t nFixed, int threads) {
   const size_t n = P.size();
   std::vector<Vec3> pos;
   std::vector<double> hs;
   Grid grid;
-  particleGrid(P, S, sizing, pos, hs, grid);
+  particleGrid(P, S, sizing, pos, hs, grid, threads);
   double sum = 0;
   size_t count = 0;
   for (size_t i = nFixed; i < n; ++i) {
@@ -611,11 +619,12 @@ constexpr double kCrossDuplicateShare = 0.25;
 /// held edges of a hundredth of a voxel and tets no later operation could mend. Returns how many
 /// went.
 size_t removeCrossInterfaceDuplicates(std::vector<Particle>& P, const Surface& S,
-                                      const SizingFunction& sizing, size_t nFixed, double share) {
+                                      const SizingFunction& sizing, size_t nFixed, double share,
+                                      int threads) {
   std::vector<Vec3> pos;
   std::vector<double> hs;
   Grid grid;
-  particleGrid(P, S, sizing, pos, hs, grid);
+  particleGrid(P, S, sizing, pos, hs, grid, threads);
   std::vector<char> drop(P.size(), 0);
   size_t dropped = 0;
   for (size_t i = nFixed; i < P.size(); ++i) {
@@ -655,7 +664,7 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
   for (; iteration < params.maxIterations; ++iteration) {
     ctx.checkCancel();
     // Forces, moves and projection.
-    JacobiStep step(P, junctions, S, sizing, params.kernelScale, params.maxStepFactor);
+    JacobiStep step(P, junctions, S, sizing, params.kernelScale, params.maxStepFactor, threads);
     step.run(iteration, lambda, threads);
     for (size_t i = 0; i < P.size(); ++i) P[i].local = step.next[i];
     const double p95 = recordIteration(step, nFixed, iteration, res, ctx);
@@ -687,8 +696,9 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
     }
   }
   res.iterations = iteration;
-  res.removed += removeCrossInterfaceDuplicates(P, S, sizing, nFixed, kCrossDuplicateShare);
-  res.meanSpacingRatio = meanSpacingRatio(P, S, sizing, nFixed);
+  res.removed +=
+      removeCrossInterfaceDuplicates(P, S, sizing, nFixed, kCrossDuplicateShare, threads);
+  res.meanSpacingRatio = meanSpacingRatio(P, S, sizing, nFixed, threads);
   sendPreview(ctx, P, S, input, iteration, true);
   res.particles = std::move(P);
   return res;

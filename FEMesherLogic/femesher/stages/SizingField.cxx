@@ -168,7 +168,7 @@ void limitByCurvature(const LabelVolume& volume, const IndicatorField& f, double
           if (h < h0) field.h[v] = float(std::max(h, field.hMin));
         }
     }
-  });
+  }, nz);  // one chunk per plane: only interface voxels cost, and they cluster
 }
 
 }  // namespace
@@ -304,26 +304,51 @@ int limitGradation(const Grid3& grid, std::vector<float>& h, double L, RunContex
     // moves); the loop repeats only to confirm it (or to finish paths bent by the grid border).
     for (int sign : {1, -1}) {
       ++sweeps;
-      for (int t = 0; t <= (ny - 1) + 2 * (nz - 1); ++t) {
-        if (ctx) ctx->checkCancel();
-        const int kLo = std::max(0, (t - (ny - 1) + 1) / 2), kHi = std::min(nz - 1, t / 2);
-        if (kHi < kLo) continue;
-        auto rows = [&](int lo, int hi) {
-          bool any = false;
-          for (int kk = lo; kk < hi; ++kk) {
+      if (arena.max_concurrency() == 1) {  // one thread: plain raster order (cache-friendliest)
+        bool any = false;
+        for (int kk = 0; kk < nz; ++kk) {
+          if (ctx && (kk & 15) == 0) ctx->checkCancel();
+          for (int jj = 0; jj < ny; ++jj)
+            any |= sweepRow(sign, sign > 0 ? jj : ny - 1 - jj, sign > 0 ? kk : nz - 1 - kk);
+        }
+        if (any) changed.store(true, std::memory_order_relaxed);
+        continue;
+      }
+      // Rows (j, k) in skewed coordinates (t = j + 2 k, k): row (t, k) reads rows (t - 1, k),
+      // (t - 3 .. t - 1, k - 1) only. Tiles of kTileT x kTileK rows: tile (T, K) reads tiles
+      // (T - 1, K), (T, K - 1) and (T - 1, K - 1), so the tiles on one wavefront T + K are
+      // independent; inside a tile the rows go by t, then k. Every row reads exactly the rows
+      // the sequential sweep finished before it: the same arithmetic, the same sweeps, with a few
+      // hundred synchronisations per sweep instead of one per row wavefront (too short for a
+      // second thread to join).
+      constexpr int kTileT = 64, kTileK = 16;
+      const int tMax = (ny - 1) + 2 * (nz - 1);
+      const int nT = tMax / kTileT + 1, nK = (nz + kTileK - 1) / kTileK;
+      auto tile = [&](int T, int K) {
+        bool any = false;
+        for (int t = T * kTileT; t <= std::min(tMax, T * kTileT + kTileT - 1); ++t) {
+          const int kLo = std::max({0, (t - (ny - 1) + 1) / 2, K * kTileK});
+          const int kHi = std::min({nz - 1, t / 2, K * kTileK + kTileK - 1});
+          for (int kk = kLo; kk <= kHi; ++kk) {
             const int jj = t - 2 * kk;
             any |= sweepRow(sign, sign > 0 ? jj : ny - 1 - jj, sign > 0 ? kk : nz - 1 - kk);
           }
-          if (any) changed.store(true, std::memory_order_relaxed);
-        };
-        // Thousands of short wavefronts: oneTBB's pool, not a thread start per wavefront.
-        if (arena.max_concurrency() == 1 || kHi - kLo < 8)
-          rows(kLo, kHi + 1);
-        else
-          arena.execute([&] {
-            tbb::parallel_for(tbb::blocked_range<int>(kLo, kHi + 1, 4),
-                              [&](const tbb::blocked_range<int>& r) { rows(r.begin(), r.end()); });
-          });
+        }
+        if (any) changed.store(true, std::memory_order_relaxed);
+      };
+      for (int w = 0; w <= (nT - 1) + (nK - 1); ++w) {
+        if (ctx) ctx->checkCancel();
+        const int kLo = std::max(0, w - (nT - 1)), kHi = std::min(nK - 1, w);
+        if (kHi == kLo) {
+          tile(w - kLo, kLo);
+          continue;
+        }
+        arena.execute([&] {
+          tbb::parallel_for(tbb::blocked_range<int>(kLo, kHi + 1, 1),
+                            [&](const tbb::blocked_range<int>& r) {
+                              for (int K = r.begin(); K < r.end(); ++K) tile(w - K, K);
+                            });
+        });
       }
     }
     if (!changed.load()) break;

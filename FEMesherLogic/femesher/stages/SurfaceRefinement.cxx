@@ -460,7 +460,7 @@ size_t refineFacetDistance(const IndicatorField& field, LabelledDelaunay& delaun
         if (bestDeviation == 0) continue;
         cand[i] = {bestDeviation, best, 0.5 * minEdge};
       }
-    });
+    }, 64);  // most facets return at once, a few march and bisect: many chunks balance them
     ctx.checkCancel();
     const size_t tooFar = size_t(std::count_if(
         cand.begin(), cand.end(), [](const Candidate& c) { return c.deviation != 0; }));

@@ -100,7 +100,7 @@ SurfaceSamples sampleInterfaces(const IndicatorField& field, const LabelVolume& 
       candidates[id] = s;
       edgeKey[id] = int64_t(vol.index(p[0], p[1], p[2])) * 3 + axis;
     }
-  });
+  }, 64);  // per-vertex results; uneven costs (junction vertices), so many chunks
   ctx.progress(0.5);
   ctx.debug("SurfaceSampling: vertices relocated " + seconds() + " s");
 

@@ -228,19 +228,30 @@ Slabs slabsOf(const LabelVolume& labels, const TetMesh& mesh, const std::vector<
   std::vector<int> slabOfPlane(size_t(std::max(nz, 1)));
   for (int k = 0; k < n; ++k)
     for (int z = sl.first[size_t(k)]; z < sl.first[size_t(k) + 1]; ++z) slabOfPlane[size_t(z)] = k;
-  sl.tets.resize(size_t(n));
-  for (size_t t = 0; t < mesh.tets.size(); ++t) {
-    double mn = 1e300, mx = -1e300;
-    for (int32_t v : mesh.tets[t]) {
-      mn = std::min(mn, idx[size_t(v)][2]);
-      mx = std::max(mx, idx[size_t(v)][2]);
+  // The slab range of every tet (k0 > k1: none), then each slab's tets in mesh order.
+  std::vector<std::array<int, 2>> range(mesh.tets.size());
+  parallelFor(mesh.tets.size(), threads, [&](size_t b, size_t e, int) {
+    for (size_t t = b; t < e; ++t) {
+      double mn = 1e300, mx = -1e300;
+      for (int32_t v : mesh.tets[t]) {
+        mn = std::min(mn, idx[size_t(v)][2]);
+        mx = std::max(mx, idx[size_t(v)][2]);
+      }
+      const double lo = std::floor(mn - 0.5), hi = std::ceil(mx + 0.5);
+      if (!(hi >= 0) || !(lo <= nz - 1)) {
+        range[t] = {1, 0};
+        continue;
+      }
+      range[t] = {slabOfPlane[size_t(std::max(0.0, lo))],
+                  slabOfPlane[size_t(std::min(double(nz - 1), hi))]};
     }
-    const double lo = std::floor(mn - 0.5), hi = std::ceil(mx + 0.5);
-    if (!(hi >= 0) || !(lo <= nz - 1)) continue;
-    const int k0 = slabOfPlane[size_t(std::max(0.0, lo))];
-    const int k1 = slabOfPlane[size_t(std::min(double(nz - 1), hi))];
-    for (int k = k0; k <= k1; ++k) sl.tets[size_t(k)].push_back(uint32_t(t));
-  }
+  });
+  sl.tets.resize(size_t(n));
+  parallelFor(size_t(n), threads, [&](size_t b, size_t e, int) {
+    for (size_t k = b; k < e; ++k)
+      for (size_t t = 0; t < range.size(); ++t)
+        if (range[t][0] <= int(k) && int(k) <= range[t][1]) sl.tets[k].push_back(uint32_t(t));
+  }, n);
   return sl;
 }
 
@@ -276,25 +287,50 @@ bool triangleMeetsCube(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& 
 /// one material region of the mesh.
 std::vector<uint8_t> cutVoxels(const LabelVolume& labels,
                                const std::vector<InterfaceTriangle>& tris,
-                               const std::vector<Vec3>& idx) {
+                               const std::vector<Vec3>& idx, int threads) {
   constexpr double kGrow = 1e-6;
   std::vector<uint8_t> cut(labels.voxelCount(), 0);
-  for (const InterfaceTriangle& tri : tris) {
-    const Vec3 &a = idx[size_t(tri.v[0])], &b = idx[size_t(tri.v[1])], &c = idx[size_t(tri.v[2])];
-    int lo[3], hi[3];
-    for (int k = 0; k < 3; ++k) {
-      const double mn = std::min({a[k], b[k], c[k]}), mx = std::max({a[k], b[k], c[k]});
-      lo[k] = std::max(0, int(std::ceil(mn - 0.5 - kGrow)));
-      hi[k] = std::min(labels.dims[k] - 1, int(std::floor(mx + 0.5 + kGrow)));
-    }
-    for (int z = lo[2]; z <= hi[2]; ++z)
-      for (int y = lo[1]; y <= hi[1]; ++y)
-        for (int x = lo[0]; x <= hi[0]; ++x) {
-          uint8_t& flag = cut[labels.index(x, y, z)];
-          if (!flag && triangleMeetsCube(a, b, c, {double(x), double(y), double(z)}, 0.5 + kGrow))
-            flag = 1;
-        }
+  const int nz = labels.dims[2];
+  // Fixed z-slabs, each flagging the voxels of its own planes: every voxel is flagged by the same
+  // test as in one sequential pass (a flag is set once any triangle meets the voxel).
+  const int slabs = std::max(1, std::min(nz, 64));
+  auto inSlab = std::vector<std::vector<uint32_t>>(size_t(slabs));
+  for (size_t t = 0; t < tris.size(); ++t) {
+    const InterfaceTriangle& tri = tris[t];
+    const double z0 = std::min({idx[size_t(tri.v[0])][2], idx[size_t(tri.v[1])][2], idx[size_t(tri.v[2])][2]});
+    const double z1 = std::max({idx[size_t(tri.v[0])][2], idx[size_t(tri.v[1])][2], idx[size_t(tri.v[2])][2]});
+    const int lo = std::max(0, int(std::ceil(z0 - 0.5 - kGrow)));
+    const int hi = std::min(nz - 1, int(std::floor(z1 + 0.5 + kGrow)));
+    if (lo > hi) continue;
+    const int s0 = int(int64_t(lo) * slabs / nz), s1 = int(int64_t(hi) * slabs / nz);
+    for (int s = s0; s <= s1; ++s) inSlab[size_t(s)].push_back(uint32_t(t));
   }
+  parallelFor(size_t(slabs), threads, [&](size_t sb, size_t se, int) {
+    for (size_t s = sb; s < se; ++s) {
+      // Planes z with z * slabs / nz == s.
+      const int zs = int((int64_t(s) * nz + slabs - 1) / slabs);
+      const int ze = int((int64_t(s + 1) * nz + slabs - 1) / slabs) - 1;
+      for (uint32_t t : inSlab[s]) {
+        const InterfaceTriangle& tri = tris[t];
+        const Vec3 &a = idx[size_t(tri.v[0])], &b = idx[size_t(tri.v[1])], &c = idx[size_t(tri.v[2])];
+        int lo[3], hi[3];
+        for (int k = 0; k < 3; ++k) {
+          const double mn = std::min({a[k], b[k], c[k]}), mx = std::max({a[k], b[k], c[k]});
+          lo[k] = std::max(0, int(std::ceil(mn - 0.5 - kGrow)));
+          hi[k] = std::min(labels.dims[k] - 1, int(std::floor(mx + 0.5 + kGrow)));
+        }
+        lo[2] = std::max(lo[2], zs);
+        hi[2] = std::min(hi[2], ze);
+        for (int z = lo[2]; z <= hi[2]; ++z)
+          for (int y = lo[1]; y <= hi[1]; ++y)
+            for (int x = lo[0]; x <= hi[0]; ++x) {
+              uint8_t& flag = cut[labels.index(x, y, z)];
+              if (!flag && triangleMeetsCube(a, b, c, {double(x), double(y), double(z)}, 0.5 + kGrow))
+                flag = 1;
+            }
+      }
+    }
+  }, slabs);
   return cut;
 }
 
@@ -324,7 +360,7 @@ std::vector<uint16_t> rasterize(const LabelVolume& labels, const TetMesh& mesh,
       forEachCentre(labels, mesh, idx, slabs.tets[sl], zs, ze, ctx,
                     [&](size_t t, size_t vi) { meshLabel[vi] = tetValue[t]; });
     }
-  });
+  }, int(slabs.tets.size()));  // one chunk per slab: their costs differ widely
   return meshLabel;
 }
 
@@ -335,7 +371,7 @@ std::vector<double> overlapVolumes(const LabelVolume& labels, const TetMesh& mes
                                    int threads, RunContext* ctx) {
   const int s = std::max(1, samplesPerAxis);
   const std::vector<Vec3> idx = indexPositions(labels, mesh, threads);
-  const std::vector<uint8_t> cut = cutVoxels(labels, tris, idx);
+  const std::vector<uint8_t> cut = cutVoxels(labels, tris, idx, threads);
   const size_t L = index.size();
   const int nz = labels.dims[2];
   const size_t sliceSize = size_t(labels.dims[0]) * size_t(labels.dims[1]);
@@ -360,7 +396,7 @@ std::vector<double> overlapVolumes(const LabelVolume& labels, const TetMesh& mes
       whole[size_t(zs)] = std::move(w);
       samples[size_t(zs)] = std::move(smp);
     }
-  });
+  }, int(slabs.tets.size()));  // one chunk per slab: their costs differ widely
   const Vec3& sp = labels.spacing;
   const double voxel = sp[0] * sp[1] * sp[2], sample = voxel / (double(s) * s * s);
   std::vector<uint64_t> w(L, 0), smp(L, 0);
