@@ -55,6 +55,19 @@ void expectGradation(const Grid3& g, const std::vector<float>& h, double L) {
   EXPECT_EQ(violations, 0u);
 }
 
+/// A grid of `dims` voxels of `spacing` mm, and a size field on it drawn uniformly from [lo, hi)
+/// with `seed`.
+std::vector<float> randomSizes(Grid3& g, std::array<int, 3> dims, std::array<double, 3> spacing,
+                               unsigned seed, float lo, float hi) {
+  g.dims = dims;
+  g.spacing = spacing;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(lo, hi);
+  std::vector<float> h(g.size());
+  for (auto& x : h) x = u(rng);
+  return h;
+}
+
 }  // namespace
 
 TEST(SizingField, LocalFeatureSizeIsDistanceToMedialVoxels) {
@@ -75,12 +88,7 @@ TEST(SizingField, LocalFeatureSizeIsDistanceToMedialVoxels) {
 
 TEST(SizingField, GradationLimitIsExactAndOnlyLowers) {
   Grid3 g;
-  g.dims = {{17, 13, 11}};
-  g.spacing = {{0.7, 0.36, 0.5}};
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<float> u(0.2f, 9.f);
-  std::vector<float> h(g.size());
-  for (auto& x : h) x = u(rng);
+  std::vector<float> h = randomSizes(g, {{17, 13, 11}}, {{0.7, 0.36, 0.5}}, 3, 0.2f, 9.f);
   const auto before = h;
   limitGradation(g, h, 0.3);
   expectGradation(g, h, 0.3);
@@ -283,12 +291,7 @@ TEST(SizingField, CurvatureTermSizesABallBySqrtSixDRAndLeavesAPlaneAlone) {
 // threads (a grid large enough that the rows are split).
 TEST(SizingField, GradationLimitIsTheSameOnAnyNumberOfThreads) {
   Grid3 g;
-  g.dims = {{23, 61, 47}};
-  g.spacing = {{0.7, 0.36, 0.5}};
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<float> u(0.2f, 9.f);
-  std::vector<float> start(g.size());
-  for (auto& x : start) x = u(rng);
+  const std::vector<float> start = randomSizes(g, {{23, 61, 47}}, {{0.7, 0.36, 0.5}}, 7, 0.2f, 9.f);
   std::vector<float> reference;
   for (int threads : {1, 2, 3, 8}) {
     RunContext ctx;
@@ -309,12 +312,8 @@ TEST(SizingField, GradationLimitIsTheSameOnAnyNumberOfThreads) {
 // time, as a reference). The grid spans several tiles of rows, partial ones too.
 TEST(SizingField, GradationLimitMatchesThePlainSequentialSweeps) {
   Grid3 g;
-  g.dims = {{7, 150, 70}};
-  g.spacing = {{0.5, 0.4, 0.9}};
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<float> u(0.1f, 12.f);
-  std::vector<float> start(g.size());
-  for (auto& x : start) x = u(rng);
+  const std::vector<float> start =
+      randomSizes(g, {{7, 150, 70}}, {{0.5, 0.4, 0.9}}, 11, 0.1f, 12.f);
   const double L = 0.25;
   std::vector<float> ref = start;
   const int nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
