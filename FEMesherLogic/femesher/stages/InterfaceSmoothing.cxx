@@ -242,7 +242,7 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
     }
     volumeChange(change);
     for (size_t l = 0; l < change.size(); ++l)
-      if (!m.moveFits(l, m.movedVolume[l] + change[l])) return false;
+      if (!m.moveFits(l, change[l])) return false;
     return in.boxPlanes(m.pts[size_t(v)]) == box;
   };
   if (!smoothVertex(m, v, &c)) return false;
@@ -300,14 +300,12 @@ bool flipInterfaceEdge(Editor& m, uint32_t t, const OptimizeInterfaces& in,
         near = d >= 0 && d <= in.facetDistance;
       }
       const double v = m.volume(t);
-      if (!near || !m.moveFits(size_t(own), m.movedVolume[size_t(own)] - v) ||
-          !m.moveFits(size_t(other), m.movedVolume[size_t(other)] + v))
+      if (!near || !m.transferFits(size_t(own), size_t(other), v))
         continue;
       // t joins the other material: (a, b) is then inside it, and removing that edge must help.
       m.relabel(t, other);
       if (removeEdge(m, t, ab[0], ab[1], fresh)) {
-        m.movedVolume[size_t(own)] -= v;
-        m.movedVolume[size_t(other)] += v;
+        m.transfer(size_t(own), size_t(other), v);
         return true;
       }
       m.relabel(t, own);
@@ -359,8 +357,7 @@ bool relabelFlatTet(Editor& m, uint32_t t, const OptimizeInterfaces& in, double 
       near = d >= 0 ? d <= in.facetDistance : sliver;
     }
     if (!near ||
-        !m.moveFits(size_t(own), m.movedVolume[size_t(own)] - v) ||
-        !m.moveFits(size_t(other), m.movedVolume[size_t(other)] + v))
+        !m.transferFits(size_t(own), size_t(other), v))
       continue;
     m.relabel(t, other);
     bool done = -negFaces > ownFaces;
@@ -377,8 +374,7 @@ bool relabelFlatTet(Editor& m, uint32_t t, const OptimizeInterfaces& in, double 
       m.relabel(t, own);
       continue;
     }
-    m.movedVolume[size_t(own)] -= v;
-    m.movedVolume[size_t(other)] += v;
+    m.transfer(size_t(own), size_t(other), v);
     return true;
   }
   return false;

@@ -20,7 +20,8 @@
 ///  - peeling: a flat tet with a face on the mesh's outer boundary (faces with no other tet: the
 ///    interface with the background or the volume's box) is removed when its thickness (smallest
 ///    altitude) is below `peelDistance` (never a material's last tet, at most 0.4 % of a
-///    material's volume in all, see "volume budgets" below; a tet at or above `minDihedralWarning` is peeled only when the
+///    material's volume in all, see "volume budgets" below; a tet at or above
+///    `minDihedralWarning` is peeled only when the
 ///    flips below do not help, and only within three quarters of that budget, so that the flattest
 ///    tets, which other operations often leave late, still find some). That flips two nearly
 ///    coplanar boundary triangles, drops a flat

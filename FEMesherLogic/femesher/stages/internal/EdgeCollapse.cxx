@@ -176,8 +176,7 @@ bool collapseEdge(Editor& m, uint32_t t, double maxLength, const OptimizeInterfa
     for (uint32_t s : m.around[size_t(gone)]) account(m.labels[s], -m.volume(s));
     for (size_t i = 0; i < moved.size(); ++i) account(m.labels[moved[i].first], movedVolume[i]);
     for (const auto& [l, c] : change)
-      ok =
-          ok && m.moveFits(size_t(l), m.movedVolume[size_t(l)] + c);
+      ok = ok && m.moveFits(size_t(l), c);
     if (!ok) continue;
     for (uint32_t s : ring) m.kill(s);
     std::vector<uint32_t> made;

@@ -46,10 +46,19 @@ class Editor {
     for (size_t i = 0; i < tets.size(); ++i) startVolume[size_t(labels[i])] += volume(uint32_t(i));
   }
 
-  /// True when material l's net moved volume may become `moved` (mm^3): |moved| and the volume
-  /// peeled from it stay within kVolumeBudget of its start volume together.
-  bool moveFits(size_t l, double moved) const {
-    return std::fabs(moved) + peeledVolume[l] <= kVolumeBudget * startVolume[l];
+  /// True when material l's net moved volume may change by `change` (mm^3): the new |net moved
+  /// volume| and the volume peeled from it stay within kVolumeBudget of its start volume together.
+  bool moveFits(size_t l, double change) const {
+    return std::fabs(movedVolume[l] + change) + peeledVolume[l] <= kVolumeBudget * startVolume[l];
+  }
+  /// True when `v` mm^3 may pass from material `from` to material `to` (a tet relabelled).
+  bool transferFits(size_t from, size_t to, double v) const {
+    return moveFits(from, -v) && moveFits(to, v);
+  }
+  /// Books `v` mm^3 passed from material `from` to material `to`.
+  void transfer(size_t from, size_t to, double v) {
+    movedVolume[from] -= v;
+    movedVolume[to] += v;
   }
   /// True when peeling `v` mm^3 more from material l stays within `share` of kPeelBudget of its
   /// start volume, and within kVolumeBudget together with its net moved volume.
