@@ -53,6 +53,10 @@ struct Case {
   /// Session 14: long edge collapses within the facet distance, four inserting rounds and one
   /// 0.5 % volume budget per material: frogtissue 9.97 -> 11.00, example_seg_dicom 10.60 -> 12.84,
   /// example_seg 6.34 -> 6.83, phantom 14.6 -> 15.0; the others unchanged.
+  /// Session 16: triple-line vertices may leave a line without a direction (a thin wedge between
+  /// nearly parallel sheets), and triangles whose interface cannot be found are measured to the
+  /// triple line: colin27 8.28 -> 10.41, example_seg 6.83 -> 11.29, knee 12.03 -> 13.83,
+  /// digimouse 11.45 -> 11.85, frogtissue 11.00 -> 11.14; the others unchanged.
   double minWorstAngle = 0;
   /// Ceiling on the number of tets (issue 13: fewer elements), a few per cent above the count
   /// measured 2026-11-25 with TetGen's dihedral bound 3: knee 506,594, colin27 2,773,833,
@@ -151,12 +155,12 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(Case{"420.nrrd", 1}, Case{"40420.nrrd", 1}, Case{"12323.nrrd", 1},
                       Case{"20012323.nrrd", 1}, Case{"mickey.nrrd", 10, 0.90, 14.9, 35600},
                       Case{"spheres_argmax.nrrd", 10, 0.90, 14.9, 8450},
-                      Case{"colin27_v3.nrrd", 10, 0.90, 8.2, 2857000},
-                      Case{"digimouse.nrrd", 10, 0.85, 11.3, 739000},
-                      Case{"frogtissue.nrrd", 10, 0.85, 10.9, 845000},
-                      Case{"example_seg.nii.gz", 10, 0.85, 6.8, 64950},
+                      Case{"colin27_v3.nrrd", 10, 0.90, 10.3, 2857000},
+                      Case{"digimouse.nrrd", 10, 0.85, 11.8, 739000},
+                      Case{"frogtissue.nrrd", 10, 0.85, 11.0, 845000},
+                      Case{"example_seg.nii.gz", 10, 0.85, 11.2, 64950},
                       Case{"example_seg_dicom.nii.gz", 10, 0.85, 12.7, 170400},
-                      Case{"9135902_00m_WB01.nii.gz", 10, 0.90, 11.9, 521800}),
+                      Case{"9135902_00m_WB01.nii.gz", 10, 0.90, 13.7, 521800}),
     [](const ::testing::TestParamInfo<Case>& info) {
       std::string n = info.param.file;
       for (auto& ch : n)

@@ -130,7 +130,10 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
   if (materials.size() < 2 || (box != 0 && materials.size() != 2)) return false;
   kind = std::min(int(materials.size()), 4);
   const Vec3 lineDirection = kind == 3 ? tripleLineDirection(faces) : Vec3{0, 0, 0};
-  if (kind == 3 && (!in.projectOntoJunction || !(norm(lineDirection) > 0))) return false;
+  // Off the line (offset > 0) the move needs no direction: three nearly parallel sheets (a thin
+  // wedge of one material ending between two others) have none, and are where it helps most.
+  if (kind == 3 && (!in.projectOntoJunction || (offset <= 0 && !(norm(lineDirection) > 0))))
+    return false;
   if (offset > 0 && kind != 2 && kind != 3) return false;
   MoveConstraint c;
   const Vec3 start = m.pts[size_t(v)];
@@ -219,9 +222,22 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
   // never beyond the facet distance unless it is already.
   // Around a junction point, a triangle whose interface cannot be found (another material leads
   // at its centroid) is bounded by the quarter facet distance the point may move (bound -1).
+  // On a triple line, a triangle whose own interface cannot be found (in a thin wedge the third
+  // material leads at its centroid) is measured to the triple line instead, a point of its
+  // interface: never nearer than the interface itself, so the bound is conservative.
+  auto distance = [&](const InterfaceFace& f) {
+    const double d = centroidDistance(m, in, f);
+    if (d >= 0 || kind != 3) return d;
+    Vec3 g{0, 0, 0};
+    for (int32_t w : f.v)
+      for (int k = 0; k < 3; ++k) g[k] += m.pts[size_t(w)][k] / 3;
+    Vec3 q = g;
+    const std::array<int, 3> abc{{materials[0], materials[1], materials[2]}};
+    return in.projectOntoJunction(abc, q) ? norm(sub(q, g)) : -1.0;
+  };
   std::vector<double> bound(faces.size());
   for (size_t i = 0; i < faces.size(); ++i) {
-    bound[i] = centroidDistance(m, in, faces[i]);
+    bound[i] = distance(faces[i]);
     if (bound[i] < 0 && kind != 4) return false;
     if (bound[i] >= 0) bound[i] = std::max(bound[i], (offset > 0 ? 0.95 : kFacetShare) * in.facetDistance);
   }
@@ -237,7 +253,7 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
   c.accept = [&]() {
     for (size_t i = 0; i < faces.size(); ++i) {
       if (bound[i] < 0) continue;
-      const double d = centroidDistance(m, in, faces[i]);
+      const double d = distance(faces[i]);
       if (d < 0 || d > bound[i]) return false;
     }
     volumeChange(change);

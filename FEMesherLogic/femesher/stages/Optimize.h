@@ -64,12 +64,18 @@
 ///    collapseEdges, when every interface triangle then around the kept end has its centroid
 ///    within the facet distance of its smooth interface (which must be found there).
 ///  - off-interface move, the last resort of the inserting rounds: a vertex of the tet with two
-///    materials around may leave its interface, to anywhere within 0.95 × the facet distance
-///    of it (pulled back to that distance; on a plane of the volume's box it stays in the plane,
-///    within that distance of the interface's trace on it), when that raises the worst tet of
-///    its star; its interface triangles' centroids stay within 0.95 × the facet distance of the
-///    interface (or no farther than they were) and the volume bound of the moves along it holds.
-///    Four vertices on interfaces that are nearly coplanar leave no other way out.
+///    materials around may leave its interface, and one with three its triple line, to anywhere
+///    within 0.95 × the facet distance of it (pulled back to that distance; on a plane of the
+///    volume's box it stays in the plane, within that distance of the interface's trace on it),
+///    when that raises the worst tet of its star; its interface triangles' centroids stay within
+///    0.95 × the facet distance of the interface (or no farther than they were) and the volume
+///    bound of the moves along it holds. Around a triple-line vertex, a triangle whose own
+///    interface cannot be found (the third material leads at its centroid) is measured to the
+///    triple line instead, which is never nearer. Four vertices on interfaces that are nearly
+///    coplanar leave no other way out; nor does a thin wedge of one material ending between two
+///    others, where every tet of the wedge at the line is as flat as the wedge (the three sheets
+///    are then nearly parallel and the line has no direction to slide along), until the line's
+///    vertices move into the wedge.
 /// Volume budgets: interface moves, relabelling, interface flips and edge collapses may change a
 /// material's volume (net, either sign) and peeling may remove from it 0.5 % of that volume
 /// together, peeling at most 0.4 %: what peeling leaves unused, the moves may use (a small
