@@ -168,7 +168,8 @@ const std::vector<Binding>& bindings() {
          "A flat tet with a face on the mesh's outer boundary (background or volume box) is "
          "removed when it is thinner than this (voxels of the smallest spacing; at most 0.4 % of "
          "a material's volume in all): the outer surface moves by at most that much. A flat tet "
-         "between materials that is this thin joins the material holding most of its faces. "
+         "between materials that is this thin (or thinner than facet_distance) joins the material "
+         "holding most of its faces. "
          "A thicker tet with a face on the outer boundary (not the volume box) is removed too when "
          "the faces it uncovers lie within facet_distance of the smooth boundary. 0 = never.", true},
         [](MeshingParameters& p, double x) { p.optimize.peelDistance = x; },

@@ -290,12 +290,17 @@ TEST(Optimize, RelabelsAFlatTetInsideAnotherMaterialAndThenRemovesIt) {
   };
   OptimizeInterfaces in;
   in.projectOntoInterface = [](int, int, Vec3&) { return true; };
-  in.facetDistance = 1;
   RunContext ctx;
   OptimizeParameters op;
   op.targetMinDihedral = 20;
   op.minFragmentVoxels = 0;
-  for (const double tolerance : {0.05, 0.001}) {
+  // The cap is 0.01 thick: thinner than the tolerance (0.05), or than the facet distance (1), it
+  // joins material 1; thicker than both it stays.
+  for (const auto& [tolerance, facetDistance] :
+       std::vector<std::pair<double, double>>{{0.05, 1}, {0.001, 1}, {0.001, 0.005}}) {
+    SCOPED_TRACE("tolerance " + std::to_string(tolerance) + ", facet distance " +
+                 std::to_string(facetDistance));
+    in.facetDistance = facetDistance;
     CornerWithCap m = closedIn();
     ASSERT_GT(minOver(m.p, m.t), 0);
     const double before = minOver(m.p, m.t);
@@ -303,7 +308,7 @@ TEST(Optimize, RelabelsAFlatTetInsideAnotherMaterialAndThenRemovesIt) {
     const auto volumeBefore = labelVolumes(m.p, m.t, m.labels);
     op.peelDistance = tolerance;
     const auto r = optimizeTetMesh(m.p, m.t, m.labels, op, in, ctx);
-    if (tolerance < 0.01) {  // thicker than the tolerance: it stays in material 2
+    if (tolerance < 0.01 && facetDistance < 0.01) {  // it stays in material 2
       EXPECT_EQ(r.relabelledTets, 0u);
       EXPECT_EQ(m.labels[1], 2);
       continue;

@@ -332,7 +332,11 @@ bool flipInterfaceEdge(Editor& m, uint32_t t, const OptimizeInterfaces& in,
 bool relabelFlatTet(Editor& m, uint32_t t, const OptimizeInterfaces& in, double tolerance,
                     std::vector<uint32_t>& fresh) {
   const int own = m.labels[t];
-  if (tolerance <= 0 || m.perLabel[size_t(own)] <= 1 || !(m.thickness(t) <= tolerance))
+  // Thinner than the tolerance (the peel distance) or the facet distance, whichever is larger:
+  // the faces that become interfaces then lie that close to the interface faces they replace.
+  const double thickness = m.thickness(t);
+  if (tolerance <= 0 || m.perLabel[size_t(own)] <= 1 ||
+      !(thickness <= std::max(tolerance, in.facetDistance)))
     return false;
   int64_t nb[4];
   int ownFaces = 0;
@@ -363,7 +367,7 @@ bool relabelFlatTet(Editor& m, uint32_t t, const OptimizeInterfaces& in, double 
     // interface. Where that cannot be checked (the projection fails: near a junction of more
     // materials, the pair is not the leading one), the tet may still go when it is thinner than
     // the facet distance: its faces lie that close to the interface faces they replace.
-    const bool sliver = m.thickness(t) <= in.facetDistance;
+    const bool sliver = thickness <= in.facetDistance;
     bool near = true;
     for (int k = 0; k < 4 && near; ++k) {
       const int l = m.labels[size_t(nb[k])];

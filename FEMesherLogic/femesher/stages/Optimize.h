@@ -43,10 +43,13 @@
 ///    or more materials around (a junction point) moves freely within a quarter of the facet
 ///    distance of where it started; an interface vertex on one plane of the volume's box moves
 ///    along the interface's trace on that plane; box edges and corners stay;
-///  - relabelling: a flat tet (thinner than `peelDistance`) with no outer face and more faces on
-///    one other material than on its own joins that material (the new interface triangles within
-///    `facet_distance`, within the volume budget of interface moves); it then has fewer
-///    constrained faces and the flips above can remove it;
+///  - relabelling: a flat tet (thinner than `peelDistance` or, with interfaces, the facet
+///    distance) with no outer face and more faces on one other material than on its own joins
+///    that material (the new interface triangles within `facet_distance` where their interface
+///    can be found, else no farther from the faces they replace than the tet is thick; within the
+///    volume budget of interface moves); it then has fewer constrained faces and the flips above
+///    can remove it; with as many or fewer, only when an edge removal or a face flip inside that
+///    material then follows;
 ///  - interface edge flips: a flat tet with two faces on the interface with one other material
 ///    (its other faces inside its own) joins that material when the edge it leaves inside it can
 ///    then be removed (the edge removal above): the two interface triangles on that edge become
