@@ -484,6 +484,50 @@ TEST(Optimize, MovesAJunctionOfFourMaterialsWithinAQuarterOfTheFacetDistance) {
   }
 }
 
+// The octahedron above with facet distance 0.2: the regular rounds move the centre by at most a
+// quarter of it; the inserting rounds' last resort (off-interface move) by up to 0.95 of it,
+// which lifts the worst tet further (frogtissue's junctions of three materials and the outside).
+TEST(Optimize, InsertingRoundsMoveAJunctionOfFourMaterialsWithinTheFacetDistance) {
+  const double facetDistance = 0.2;
+  double worst[2] = {0, 0}, moved[2] = {0, 0};
+  for (const bool inserting : {false, true}) {
+    std::vector<Vec3> p = {{0.8, 0.05, 0.03}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0},
+                           {0, -1, 0},        {0, 0, 1}, {0, 0, -1}};
+    Tets t;
+    std::vector<int32_t> labels;
+    for (int32_t x : {1, 2})
+      for (int32_t y : {3, 4})
+        for (int32_t z : {5, 6}) {
+          std::array<int32_t, 4> T{0, x, y, z};
+          orientPositively(p, T);
+          t.push_back(T);
+          labels.push_back(1 + (x == 1 ? 0 : 2) + (y == 3 ? 0 : 1));
+        }
+    for (int32_t label = 1; label <= 4; ++label) addBulkTet(p, t, labels, 100.0 * label, label);
+    const Vec3 start = p[0];
+    OptimizeInterfaces in;
+    in.projectOntoInterface = [](int a, int, Vec3&) { return a != 0; };
+    in.projectOntoJunction = [](const std::array<int, 3>&, Vec3&) { return false; };
+    in.facetDistance = facetDistance;
+    RunContext ctx;
+    OptimizeParameters op;
+    op.targetMinDihedral = 30;
+    op.peelDistance = 0;
+    op.minFragmentVoxels = 0;
+    op.collapseEdges = false;
+    op.splitEdges = false;
+    op.insertVertices = inserting;
+    const auto r = optimizeTetMesh(p, t, labels, op, in, ctx);
+    worst[inserting] = minOver(p, t);
+    moved[inserting] = norm(sub(p[0], start));
+    if (inserting) EXPECT_GE(r.offInterfaceMoves, 1u);
+  }
+  EXPECT_LE(moved[0], 0.25 * facetDistance + 1e-9);
+  EXPECT_GT(moved[1], 0.25 * facetDistance + 1e-6);
+  EXPECT_LE(moved[1], 0.95 * facetDistance + 1e-9);
+  EXPECT_GT(worst[1], worst[0] + 1) << "moving farther should lift the worst tet clearly";
+}
+
 // A thin wedge of material 3 (8 degrees) ending between materials 1 and 2 on the y axis, the
 // triple line: a ring of nine points around the axis, fanned to four axis points (the two inner
 // ones, A and B, are triple-line vertices with closed stars). Every tet of the wedge has its 8
@@ -555,9 +599,9 @@ TEST(Optimize, MovesATripleLineVertexIntoAThinWedgeOffTheLine) {
       EXPECT_GT(p[i][0], 0.05) << "vertex " << i << " did not move into the wedge";
       EXPECT_LE(std::hypot(p[i][0], p[i][2]), 0.95 * facetDistance + 1e-9) << "vertex " << i;
     }
-    // A' and B' are junctions with the outside: within a quarter of the facet distance.
+    // A' and B' are junctions with the outside: within 0.95 facet distance (the inserting rounds).
     for (size_t i : {size_t(0), size_t(3)})
-      EXPECT_LE(norm(sub(p[i], start[i])), 0.25 * facetDistance + 1e-9) << "outer vertex " << i;
+      EXPECT_LE(norm(sub(p[i], start[i])), 0.95 * facetDistance + 1e-9) << "outer vertex " << i;
   }
 }
 

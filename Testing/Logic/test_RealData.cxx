@@ -56,7 +56,8 @@ struct Case {
   /// Session 16: triple-line vertices may leave a line without a direction (a thin wedge between
   /// nearly parallel sheets), and triangles whose interface cannot be found are measured to the
   /// triple line: colin27 8.28 -> 10.41, example_seg 6.83 -> 11.29, knee 12.03 -> 13.83,
-  /// digimouse 11.45 -> 11.85, frogtissue 11.00 -> 11.14; the others unchanged.
+  /// digimouse 11.45 -> 11.85, frogtissue 11.00 -> 11.14; the others unchanged. Then junction
+  /// points moving up to 0.95 facet distance in the last resort: frogtissue 11.14 -> 13.48.
   double minWorstAngle = 0;
   /// Ceiling on the number of tets (issue 13: fewer elements), a few per cent above the count
   /// measured 2026-11-25 with TetGen's dihedral bound 3: knee 506,594, colin27 2,773,833,
@@ -157,7 +158,7 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"spheres_argmax.nrrd", 10, 0.90, 14.9, 8450},
                       Case{"colin27_v3.nrrd", 10, 0.90, 10.3, 2857000},
                       Case{"digimouse.nrrd", 10, 0.85, 11.8, 739000},
-                      Case{"frogtissue.nrrd", 10, 0.85, 11.0, 845000},
+                      Case{"frogtissue.nrrd", 10, 0.85, 13.4, 845000},
                       Case{"example_seg.nii.gz", 10, 0.85, 11.2, 64950},
                       Case{"example_seg_dicom.nii.gz", 10, 0.85, 12.7, 170400},
                       Case{"9135902_00m_WB01.nii.gz", 10, 0.90, 13.7, 521800}),

@@ -134,14 +134,13 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
   // wedge of one material ending between two others) have none, and are where it helps most.
   if (kind == 3 && (!in.projectOntoJunction || (offset <= 0 && !(norm(lineDirection) > 0))))
     return false;
-  if (offset > 0 && kind != 2 && kind != 3) return false;
   MoveConstraint c;
   const Vec3 start = m.pts[size_t(v)];
   if (kind == 4) {
     // A junction of four or more materials: it may move anywhere within a quarter of the facet
     // distance of where it was before the first move.
     const Vec3 anchor = m.junctionStart.emplace(v, start).first->second;
-    const double radius = kFacetShare * in.facetDistance;
+    const double radius = offset > 0 ? offset : kFacetShare * in.facetDistance;
     c.project = [anchor, radius](Vec3& p) {
       const Vec3 d = sub(p, anchor);
       const double len = norm(d);
@@ -203,7 +202,7 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
     const std::array<int, 3> abc{{materials[0], materials[1], materials[2]}};
     c.project = [&in, abc](Vec3& p) { return in.projectOntoJunction(abc, p); };
   }
-  if (offset > 0) {  // anywhere within `offset` of the interface, trace or line
+  if (offset > 0 && kind != 4) {  // anywhere within `offset` of the interface, trace or line
     c.project = withinOffset(std::move(c.project), offset);
     if (box == 0) {
       c.tangent = nullptr;

@@ -7,9 +7,10 @@
 /// Vertex classes, from the mesh itself: the materials around a vertex are the labels of its
 /// tets, plus the background (0) when one of its faces has no tet on the other side and is not on
 /// the volume's box (the mesh's outer boundary). One material: interior; two: interface; three:
-/// triple line (moves along it, unless the line's direction is unclear there); four or more: junction point, which may move anywhere within a quarter of the facet distance
-/// of where it is (faces around it whose interface the projection cannot find are bounded by
-/// that alone). On the volume's box, only a vertex on one box plane between two materials moves:
+/// triple line (moves along it, unless the line's direction is unclear there); four or more:
+/// junction point, which may move anywhere within a quarter of the facet distance of where it
+/// is (faces around it whose interface the projection cannot find are bounded by that alone;
+/// the optimizer's last resort allows 0.95 of the facet distance, see smoothInterfaceVertex). On the volume's box, only a vertex on one box plane between two materials moves:
 /// along the trace of their interface on that plane (alternating projections onto the interface
 /// and the plane), never leaving the plane; box edges and corners stay (the outer-boundary
 /// sliding of Optimize.h keeps box-face vertices of one material on their face).

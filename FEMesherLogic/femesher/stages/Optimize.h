@@ -67,9 +67,10 @@
 ///    collapseEdges, when every interface triangle then around the kept end has its centroid
 ///    within the facet distance of its smooth interface (which must be found there).
 ///  - off-interface move, the last resort of the inserting rounds: a vertex of the tet with two
-///    materials around may leave its interface, and one with three its triple line, to anywhere
+///    materials around may leave its interface, one with three its triple line, to anywhere
 ///    within 0.95 × the facet distance of it (pulled back to that distance; on a plane of the
-///    volume's box it stays in the plane, within that distance of the interface's trace on it),
+///    volume's box it stays in the plane, within that distance of the interface's trace on it;
+///    a junction point of four or more materials within that distance of where it started),
 ///    when that raises the worst tet of its star; its interface triangles' centroids stay within
 ///    0.95 × the facet distance of the interface (or no farther than they were) and the volume
 ///    bound of the moves along it holds. Around a triple-line vertex, a triangle whose own

@@ -279,9 +279,11 @@ double faceDistance(const Editor& m, const OptimizeInterfaces& interfaces,
 /// quarter of the facet distance (InterfaceSmoothing.h); false when v is interior or on the box,
 /// or no move helps. `kind` gets 2 (interface), 3 (triple line) or 4 (junction point).
 /// With `offset` > 0 (mm) an interface vertex between two materials may also leave its
-/// interface, to anywhere within `offset` of it (on a plane of the volume's box: within that
-/// plane, within `offset` of the interface's trace on it): the last resort for a flat tet whose
-/// four vertices lie on interfaces (the optimizer's inserting rounds, Optimize.h).
+/// interface, a triple-line vertex its line (also where the line has no clear direction), to
+/// anywhere within `offset` of it (on a plane of the volume's box: within that plane, within
+/// `offset` of the interface's trace on it), and a junction point may move within `offset` of
+/// where it started: the last resort for a flat tet whose four vertices lie on interfaces (the
+/// optimizer's inserting rounds, Optimize.h).
 bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& interfaces, int& kind,
                            double offset = 0);
 
