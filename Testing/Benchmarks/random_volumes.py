@@ -8,11 +8,12 @@ boxes, labels cut by the volume border; any of them may get an oblique (rotated)
 anisotropic header. Sizes 12^3 to 48^3 (each axis drawn on its own).
 
 API: generate(seed, out_dir=None, max_size=48) -> (name, path of the NRRD file).
-CLI: random_volumes.py --count N --seed S --femesher build/bin/femesher [--max-size M]
+CLI: random_volumes.py --count N --seed S --femesher build/bin/femesher [--max-size M] [--json F]
 meshes each volume (default parameters, --threads 2), reads each written mesh back with
 `femesher quality MESH --labels IN --json` and an independent decoder of the .vtu, and prints a
 table (exit code, zero-volume tets, worst angle, share < 5 and < 10 degrees, missing labels,
-min Dice) and a summary line."""
+min Dice), a summary line and a table per family (volumes, failures, zero-volume meshes, how many
+reach 5 and 10 degrees, median and lowest worst angle, median lowest Dice, missing labels)."""
 import argparse
 import json
 import os
@@ -258,7 +259,30 @@ def sweep(femesher, count, seed, max_size=48, work=None, out=sys.stdout):
               sum(r["status"] == "poor_elements" for r in ok), zero, len(failed),
               (" (" + ", ".join("%s x%d" % kv for kv in sorted(reasons.items())) + ")") if failed else ""),
           file=out)
+    print_family_table(rows, out)
     return rows
+
+
+def print_family_table(rows, out=sys.stdout):
+    """One markdown row per family (and one for all): volumes, failed, zero-volume meshes, share
+    reaching 5 and 10 degrees, median and lowest worst angle, median lowest Dice, missing labels."""
+    def family(r):
+        return r["name"].split("_")[1]
+    print("| family | volumes | failed | zero-volume tets | worst >= 5° | worst >= 10° | median worst ° | "
+          "lowest worst ° | median min Dice | with a missing label |", file=out)
+    print("|---|---|---|---|---|---|---|---|---|---|", file=out)
+    for fam in list(FAMILIES) + ["all"]:
+        rs = [r for r in rows if fam == "all" or family(r) == fam]
+        if not rs:
+            continue
+        ok = [r for r in rs if r["exit"] == 0]
+        worst = sorted(r["worst"] for r in ok)
+        dice = sorted(r["min_dice"] for r in ok if r["min_dice"] == r["min_dice"])
+        print("| %s | %d | %d | %d | %d | %d | %s | %s | %s | %d |" % (
+            fam, len(rs), len(rs) - len(ok), sum(r["zero_volume"] > 0 for r in ok),
+            sum(w >= 5 for w in worst), sum(w >= 10 for w in worst),
+            "%.1f" % float(np.median(worst)) if worst else "-", "%.2f" % worst[0] if worst else "-",
+            "%.3f" % float(np.median(dice)) if dice else "-", sum(bool(r["missing"]) for r in ok)), file=out)
 
 
 def main():
@@ -268,8 +292,12 @@ def main():
     ap.add_argument("--femesher", default="build/bin/femesher")
     ap.add_argument("--max-size", type=int, default=48, help="largest axis size (12..48)")
     ap.add_argument("--work", default=None, help="directory for the volumes and meshes")
+    ap.add_argument("--json", default=None, help="write every row (without stderr) to this file")
     a = ap.parse_args()
-    sweep(a.femesher, a.count, a.seed, a.max_size, a.work)
+    rows = sweep(a.femesher, a.count, a.seed, a.max_size, a.work)
+    if a.json:
+        with open(a.json, "w") as f:
+            json.dump([{k: v for k, v in r.items() if k != "stderr"} for r in rows], f, indent=1)
 
 
 if __name__ == "__main__":
