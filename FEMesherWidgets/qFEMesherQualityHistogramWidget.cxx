@@ -22,7 +22,7 @@ namespace {
 constexpr int kPlots = 5;
 const char* kMetricNames[kPlots] = {"aspect_ratio", "radius_ratio", "min_dihedral", "volume",
                                     "scaled_jacobian"};
-const char* kMetricTitles[kPlots] = {"Aspect ratio", "Radius ratio", "Min dihedral angle (deg)",
+const char* kMetricTitles[kPlots] = {"Aspect ratio", "Radius ratio", "Min dihedral (\u00b0)",
                                      "Volume (mm\u00b3, log)", "Scaled Jacobian"};
 /// Which end is worse: +1 the largest value, -1 the smallest.
 const int kWorseSide[kPlots] = {+1, +1, -1, -1, -1};
@@ -113,12 +113,14 @@ void qFEMesherHistogramPlot::paintEvent(QPaintEvent*) {
   QFont bold = font();
   bold.setBold(true);
   p.setFont(bold);
-  p.drawText(QRect(6, 3, r.width() - 12, lineH), Qt::AlignLeft | Qt::AlignVCenter, title_);
+  // A title or count line wider than the plot ends in "..." rather than being cut off mid-letter.
+  p.drawText(QRect(6, 3, r.width() - 12, lineH), Qt::AlignLeft | Qt::AlignVCenter,
+             QFontMetrics(bold).elidedText(title_, Qt::ElideRight, r.width() - 12));
   p.setFont(font());
   const bool hasBad = hasData_ && metric_.badCount > 0 && metric_.name != "volume";
   p.setPen(hasBad ? QColor(190, 30, 30) : palette().text().color());
   p.drawText(QRect(6, 3 + lineH, r.width() - 12, lineH), Qt::AlignLeft | Qt::AlignVCenter,
-             badText());
+             fm.elidedText(badText(), Qt::ElideRight, r.width() - 12));
   if (!hasData_) return;
 
   const auto& h = metric_.histogram;
