@@ -320,6 +320,30 @@ TetgenInput wholeSurface(const BoundarySurface& s, const std::vector<double>& si
   return in;
 }
 
+/// True when `x` lies inside the closed surface made of `tris` (over `pts`): the parity of the
+/// triangles a fixed ray from x crosses (the ray's direction avoids the axes, so points on a box
+/// face or a staircase plane do not graze triangles edge-on).
+bool insideClosedSurface(const Vec3& x, const std::vector<Vec3>& pts,
+                         const std::vector<std::array<int32_t, 3>>& tris) {
+  const Vec3 d{0.5773502691896258, 0.5826491074912312, 0.5720514308880204};
+  int crossings = 0;
+  for (const auto& t : tris) {
+    const Vec3 &a = pts[size_t(t[0])], &b = pts[size_t(t[1])], &c = pts[size_t(t[2])];
+    const Vec3 e1{b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2{c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const Vec3 p{d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]};
+    const double det = e1[0] * p[0] + e1[1] * p[1] + e1[2] * p[2];
+    if (std::fabs(det) < 1e-300) continue;  // the ray is parallel to the triangle
+    const Vec3 s{x[0] - a[0], x[1] - a[1], x[2] - a[2]};
+    const double u = (s[0] * p[0] + s[1] * p[1] + s[2] * p[2]) / det;
+    if (u < 0 || u > 1) continue;
+    const Vec3 q{s[1] * e1[2] - s[2] * e1[1], s[2] * e1[0] - s[0] * e1[2], s[0] * e1[1] - s[1] * e1[0]};
+    const double v = (d[0] * q[0] + d[1] * q[1] + d[2] * q[2]) / det;
+    if (v < 0 || u + v > 1) continue;
+    if ((e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) / det > 0) ++crossings;
+  }
+  return crossings % 2 == 1;
+}
+
 /// One TetGen problem per material: its interface triangles, and a hole in every cavity of
 /// other materials that they enclose. With -Y the interface triangles are not split, so the
 /// materials' meshes share them exactly and together form one conformal mesh.
@@ -354,7 +378,12 @@ std::vector<TetgenInput> perMaterialSurfaces(const BoundarySurface& s,
     }
     for (int32_t g : in.globalId) local[g] = -1;
     if (in.triangles.empty()) continue;
-    if (size_t(m) < holes.size()) in.holes = holes[size_t(m)];
+    // A hole point must lie outside this material's surface: the cavities come from the
+    // labelled Delaunay's regions, and a surface built otherwise (the local Delaunay one) may
+    // not bound the same ones; a point inside would carve away the whole material.
+    if (size_t(m) < holes.size())
+      for (const Vec3& h : holes[size_t(m)])
+        if (!insideClosedSurface(h, in.points, in.triangles)) in.holes.push_back(h);
     inputs.push_back(std::move(in));
   }
   return inputs;
