@@ -358,6 +358,7 @@ TEST(VolumeMesh, LocalDelaunaySurfaceIsMeshedPerMaterialWithoutCarvingItAway) {
     ASSERT_TRUE(r.isOk()) << name << ": " << r.status().message();
     std::map<std::string, double> c(r->counts.begin(), r->counts.end());
     EXPECT_EQ(c["ldt_used"], 1.0) << name;
+    EXPECT_EQ(c["tetgen_runs"], double(labelVolumes(r->mesh).size())) << name << ": not per material";
     for (const std::string& w : r->warnings)
       EXPECT_EQ(w.find("per material"), std::string::npos) << name << ": " << w;
     expectConformal(r->mesh);

@@ -97,6 +97,16 @@ void LabelledDelaunay::adjacency(size_t n, std::vector<uint32_t>& offsets,
 }
 
 std::vector<std::vector<Vec3>> LabelledDelaunay::enclosedHolePoints() const {
+  std::vector<std::vector<Vec3>> holes;
+  for (const auto& cavities : enclosedCavities()) {
+    holes.emplace_back();
+    for (const auto& candidates : cavities) holes.back().push_back(candidates.front());
+  }
+  return holes;
+}
+
+std::vector<std::vector<std::vector<Vec3>>> LabelledDelaunay::enclosedCavities(
+    size_t candidates) const {
   Delaunay& dt = impl->dt;
   const int nLabels = impl->labels + 1;
   // Regions: connected sets of same-label cells (the infinite cells, label 0, join the outside).
@@ -161,8 +171,19 @@ std::vector<std::vector<Vec3>> LabelledDelaunay::enclosedHolePoints() const {
   edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
   // Per label m: components of the other regions joined by their adjacencies; each component
   // that does not reach the outside is a cavity of m.
-  std::vector<std::vector<Vec3>> holes(static_cast<size_t>(nLabels));
+  std::vector<std::vector<std::vector<Vec3>>> holes(static_cast<size_t>(nLabels));
   std::vector<uint32_t> parent(regionLabel.size());
+  auto centroidOf = [&](uint32_t ci) {
+    const auto c = cells[ci];
+    const Point g = CGAL::centroid(c->vertex(0)->point(), c->vertex(1)->point(),
+                                   c->vertex(2)->point(), c->vertex(3)->point());
+    return Vec3{g.x(), g.y(), g.z()};
+  };
+  auto volumeOf = [&](uint32_t ci) {
+    const auto c = cells[ci];
+    return std::fabs(CGAL::volume(c->vertex(0)->point(), c->vertex(1)->point(),
+                                  c->vertex(2)->point(), c->vertex(3)->point()));
+  };
   auto find = [&](uint32_t x) {
     while (parent[x] != x) x = parent[x] = parent[parent[x]];
     return x;
@@ -183,13 +204,38 @@ std::vector<std::vector<Vec3>> LabelledDelaunay::enclosedHolePoints() const {
       if (regionLabel[a] == m && regionLabel[b] != m) touchesM[find(b)] = 1;
       if (regionLabel[b] == m && regionLabel[a] != m) touchesM[find(a)] = 1;
     }
+    // Each enclosed component: first its root region's representative (the component's lowest
+    // region id, a finite cell), then the centroids of its largest cells, largest first.
+    std::vector<uint32_t> slot(parent.size(), kNone);
+    std::vector<std::vector<std::pair<double, uint32_t>>> largest;
     for (uint32_t r = 0; r < parent.size(); ++r) {
       if (regionLabel[r] == m || find(r) != r || reaches[r] || !touchesM[r]) continue;
-      // The root is the component's lowest region id; its representative is a finite cell.
-      const auto c = cells[representative[r]];
-      const Point g = CGAL::centroid(c->vertex(0)->point(), c->vertex(1)->point(),
-                                     c->vertex(2)->point(), c->vertex(3)->point());
-      holes[size_t(m)].push_back({g.x(), g.y(), g.z()});
+      slot[r] = uint32_t(holes[size_t(m)].size());
+      holes[size_t(m)].push_back({centroidOf(representative[r])});
+      largest.emplace_back();
+    }
+    if (candidates > 1 && !largest.empty()) {
+      for (uint32_t ci = 0; ci < cells.size(); ++ci) {
+        if (dt.is_infinite(cells[ci]) || cellLabel[ci] == m) continue;
+        const uint32_t k = slot[find(region[ci])];
+        if (k == kNone || ci == representative[find(region[ci])]) continue;
+        auto& best = largest[k];
+        best.emplace_back(volumeOf(ci), ci);
+        if (best.size() > 4 * candidates) {  // keep the largest few (ties: lower cell index)
+          std::sort(best.begin(), best.end(), [](const auto& a, const auto& b) {
+            return a.first != b.first ? a.first > b.first : a.second < b.second;
+          });
+          best.resize(candidates - 1);
+        }
+      }
+      for (size_t k = 0; k < largest.size(); ++k) {
+        auto& best = largest[k];
+        std::sort(best.begin(), best.end(), [](const auto& a, const auto& b) {
+          return a.first != b.first ? a.first > b.first : a.second < b.second;
+        });
+        for (size_t q = 0; q < best.size() && q + 1 < candidates; ++q)
+          holes[size_t(m)][k].push_back(centroidOf(best[q].second));
+      }
     }
   }
   return holes;

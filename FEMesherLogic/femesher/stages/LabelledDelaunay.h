@@ -70,6 +70,11 @@ class LabelledDelaunay {
   /// Uses the tets' label slots as scratch space while it runs: do not call it concurrently with
   /// labelAt() or anything else reading the triangulation.
   std::vector<std::vector<Vec3>> enclosedHolePoints() const;
+  /// The same cavities, each with up to `candidates` points: the hole point above first, then
+  /// the centroids of the cavity's largest tets (for a surface other than the restricted
+  /// Delaunay one, which may bound a cavity a little differently: VolumeMesh takes the first
+  /// point that lies outside the material's own surface).
+  std::vector<std::vector<std::vector<Vec3>>> enclosedCavities(size_t candidates = 1) const;
   /// The labelled tets themselves (label != 0), canonical coordinates, compact labels.
   void exportTets(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
                   std::vector<int32_t>& labels) const;

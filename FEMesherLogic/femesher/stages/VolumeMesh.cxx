@@ -348,12 +348,12 @@ bool insideClosedSurface(const Vec3& x, const std::vector<Vec3>& pts,
 /// other materials that they enclose. With -Y the interface triangles are not split, so the
 /// materials' meshes share them exactly and together form one conformal mesh.
 std::vector<TetgenInput> perMaterialSurfaces(const BoundarySurface& s,
-                                             const std::vector<double>& sizes) {
+                                             const std::vector<double>& sizes, bool& unplaced) {
   std::map<std::pair<uint16_t, uint16_t>, int> ids;
   for (const auto& p : s.trianglePairs) ids.emplace(p, int(ids.size()) + 1);
   int maxLabel = 0;
   for (const auto& p : s.trianglePairs) maxLabel = std::max<int>(maxLabel, p.second);
-  const auto holes = s.delaunay->enclosedHolePoints();
+  const auto cavities = s.delaunay->enclosedCavities(8);
   std::vector<TetgenInput> inputs;
   std::vector<int32_t> local(s.points.size(), -1);
   for (int m = 1; m <= maxLabel; ++m) {
@@ -379,11 +379,20 @@ std::vector<TetgenInput> perMaterialSurfaces(const BoundarySurface& s,
     for (int32_t g : in.globalId) local[g] = -1;
     if (in.triangles.empty()) continue;
     // A hole point must lie outside this material's surface: the cavities come from the
-    // labelled Delaunay's regions, and a surface built otherwise (the local Delaunay one) may
-    // not bound the same ones; a point inside would carve away the whole material.
-    if (size_t(m) < holes.size())
-      for (const Vec3& h : holes[size_t(m)])
-        if (!insideClosedSurface(h, in.points, in.triangles)) in.holes.push_back(h);
+    // labelled Delaunay's regions, and a surface built otherwise (the local Delaunay one) bounds
+    // them a little differently; a point inside would carve away the whole material. Each cavity
+    // takes its first candidate outside; one with none cannot be meshed per material.
+    if (size_t(m) < cavities.size())
+      for (const auto& candidates : cavities[size_t(m)]) {
+        auto it = std::find_if(candidates.begin(), candidates.end(), [&](const Vec3& h) {
+          return !insideClosedSurface(h, in.points, in.triangles);
+        });
+        if (it == candidates.end()) {
+          unplaced = true;
+          break;
+        }
+        in.holes.push_back(*it);
+      }
     inputs.push_back(std::move(in));
   }
   return inputs;
@@ -513,13 +522,18 @@ VolumeMeshResult buildVolumeMesh(const BoundarySurface& s, const VolumeMeshParam
   // 1. One TetGen run per material, side by side (interfaces kept, so they fit together).
   if (params.preserveInterfaces && params.perMaterial && s.delaunay) {
     const std::string switches = base.str() + "Y";
-    std::vector<TetgenInput> inputs = perMaterialSurfaces(s, sizes);
+    bool unplaced = false;
+    std::vector<TetgenInput> inputs = perMaterialSurfaces(s, sizes, unplaced);
     std::sort(inputs.begin(), inputs.end(), [](const TetgenInput& a, const TetgenInput& b) {
       if (a.triangles.size() != b.triangles.size()) return a.triangles.size() > b.triangles.size();
       return a.label < b.label;
     });
-    auto jobs = runTetgenJobs(inputs, switches, threads, ctx, 0.0, 0.9);
-    std::string failure;
+    // A cavity the material's own surface does not bound where the labelled Delaunay does (no
+    // candidate hole point outside it): meshed as one surface below, where TetGen finds the
+    // regions itself.
+    std::vector<JobResult> jobs;
+    if (!unplaced) jobs = runTetgenJobs(inputs, switches, threads, ctx, 0.0, 0.9);
+    std::string failure = unplaced ? "unplaced" : "";
     for (size_t j = 0; j < jobs.size() && failure.empty(); ++j)
       if (!jobs[j].ok)
         failure = "material " + std::to_string(inputs[j].label) + ": " + jobs[j].error;
@@ -549,8 +563,12 @@ VolumeMeshResult buildVolumeMesh(const BoundarySurface& s, const VolumeMeshParam
       ctx.progress(1.0);
       return result;
     }
-    ctx.warn("Volume meshing per material with TetGen switches '" + switches + "' failed (" +
-             failure + "); the whole surface is meshed at once instead.");
+    if (unplaced)
+      ctx.debug("Volume meshing: a cavity of the labelled Delaunay is not bounded by the surface; "
+                "the whole surface is meshed at once.");
+    else
+      ctx.warn("Volume meshing per material with TetGen switches '" + switches + "' failed (" +
+               failure + "); the whole surface is meshed at once instead.");
     result = VolumeMeshResult{};
   }
 
