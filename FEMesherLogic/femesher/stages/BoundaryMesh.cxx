@@ -162,6 +162,7 @@ void addLocalDelaunaySurface(const IndicatorField& field, const std::vector<Vec3
   surface.points.clear();
   surface.triangles.clear();
   surface.trianglePairs = ldt.trianglePairs;
+  surface.fromDelaunay = false;
   for (const auto& t : ldt.triangles) {
     std::array<int32_t, 3> tri;
     for (int k = 0; k < 3; ++k) {

@@ -65,6 +65,9 @@ struct BoundarySurface {
   size_t voxelCentrePoints = 0;     ///< points inserted so voxel centres fall in their label
   size_t junctionPoints = 0;        ///< points inserted so the triple lines become edges
   size_t junctionsOffLines = 0;     ///< junction particles still on no triple edge afterwards
+  /// The triangles are the labelled Delaunay's own interface triangles (false once the local
+  /// Delaunay surface replaced them): its regions' points then lie exactly outside or inside.
+  bool fromDelaunay = true;
 };
 
 /// The restricted Delaunay surface of `points` (the particles, local voxel index positions; a

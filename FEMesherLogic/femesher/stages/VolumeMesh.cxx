@@ -353,7 +353,7 @@ std::vector<TetgenInput> perMaterialSurfaces(const BoundarySurface& s,
   for (const auto& p : s.trianglePairs) ids.emplace(p, int(ids.size()) + 1);
   int maxLabel = 0;
   for (const auto& p : s.trianglePairs) maxLabel = std::max<int>(maxLabel, p.second);
-  const auto cavities = s.delaunay->enclosedCavities(8);
+  const auto cavities = s.delaunay->enclosedCavities(s.fromDelaunay ? 1 : 8);
   std::vector<TetgenInput> inputs;
   std::vector<int32_t> local(s.points.size(), -1);
   for (int m = 1; m <= maxLabel; ++m) {
@@ -381,11 +381,12 @@ std::vector<TetgenInput> perMaterialSurfaces(const BoundarySurface& s,
     // A hole point must lie outside this material's surface: the cavities come from the
     // labelled Delaunay's regions, and a surface built otherwise (the local Delaunay one) bounds
     // them a little differently; a point inside would carve away the whole material. Each cavity
-    // takes its first candidate outside; one with none cannot be meshed per material.
+    // takes its first candidate outside; one with none cannot be meshed per material. (The
+    // Delaunay's own surface bounds its regions exactly: its first candidate is outside.)
     if (size_t(m) < cavities.size())
       for (const auto& candidates : cavities[size_t(m)]) {
         auto it = std::find_if(candidates.begin(), candidates.end(), [&](const Vec3& h) {
-          return !insideClosedSurface(h, in.points, in.triangles);
+          return s.fromDelaunay || !insideClosedSurface(h, in.points, in.triangles);
         });
         if (it == candidates.end()) {
           unplaced = true;
