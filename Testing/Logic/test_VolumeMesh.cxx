@@ -343,7 +343,9 @@ TEST(VolumeMesh, CancelStopsTheStage) {
 // of the thin rod has flat pockets of background lying along the rod (its convex-hull facets), so
 // one of those points lay inside the rod's local Delaunay surface and TetGen carved the whole rod
 // away ("TetGen produced no tetrahedra"; the whole surface was then meshed at once, with a
-// warning). A hole point inside the material's own surface is now dropped. The rod is also where
+// warning). A material's run now takes the first of a cavity's candidate points that lies outside
+// its own surface (and the whole surface is meshed at once, up front, when a cavity has none,
+// as on the phantom and the knee). The rod is also where
 // the local Delaunay surface beats the restricted one (issue 12, thin parts): 10.7 degrees against
 // 2.1 with the restricted surface at the same defaults.
 TEST(VolumeMesh, LocalDelaunaySurfaceIsMeshedPerMaterialWithoutCarvingItAway) {

@@ -179,6 +179,10 @@ std::vector<std::vector<std::vector<Vec3>>> LabelledDelaunay::enclosedCavities(
                                    c->vertex(2)->point(), c->vertex(3)->point());
     return Vec3{g.x(), g.y(), g.z()};
   };
+  // Largest volume first, ties by lower cell index (deterministic).
+  auto larger = [](const std::pair<double, uint32_t>& a, const std::pair<double, uint32_t>& b) {
+    return a.first != b.first ? a.first > b.first : a.second < b.second;
+  };
   auto volumeOf = [&](uint32_t ci) {
     const auto c = cells[ci];
     return std::fabs(CGAL::volume(c->vertex(0)->point(), c->vertex(1)->point(),
@@ -221,18 +225,14 @@ std::vector<std::vector<std::vector<Vec3>>> LabelledDelaunay::enclosedCavities(
         if (k == kNone || ci == representative[find(region[ci])]) continue;
         auto& best = largest[k];
         best.emplace_back(volumeOf(ci), ci);
-        if (best.size() > 4 * candidates) {  // keep the largest few (ties: lower cell index)
-          std::sort(best.begin(), best.end(), [](const auto& a, const auto& b) {
-            return a.first != b.first ? a.first > b.first : a.second < b.second;
-          });
+        if (best.size() > 4 * candidates) {  // keep the largest few
+          std::sort(best.begin(), best.end(), larger);
           best.resize(candidates - 1);
         }
       }
       for (size_t k = 0; k < largest.size(); ++k) {
         auto& best = largest[k];
-        std::sort(best.begin(), best.end(), [](const auto& a, const auto& b) {
-          return a.first != b.first ? a.first > b.first : a.second < b.second;
-        });
+        std::sort(best.begin(), best.end(), larger);
         for (size_t q = 0; q < best.size() && q + 1 < candidates; ++q)
           holes[size_t(m)][k].push_back(centroidOf(best[q].second));
       }

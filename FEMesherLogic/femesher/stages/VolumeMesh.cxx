@@ -2,6 +2,7 @@
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
 #include <femesher/Status.h>
+#include <femesher/VecMath.h>
 #include <femesher/stages/VolumeMesh.h>
 #include <femesher/stages/internal/SpatialOrder.h>
 
@@ -327,19 +328,19 @@ bool insideClosedSurface(const Vec3& x, const std::vector<Vec3>& pts,
                          const std::vector<std::array<int32_t, 3>>& tris) {
   const Vec3 d{0.5773502691896258, 0.5826491074912312, 0.5720514308880204};
   int crossings = 0;
-  for (const auto& t : tris) {
-    const Vec3 &a = pts[size_t(t[0])], &b = pts[size_t(t[1])], &c = pts[size_t(t[2])];
-    const Vec3 e1{b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2{c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    const Vec3 p{d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]};
-    const double det = e1[0] * p[0] + e1[1] * p[1] + e1[2] * p[2];
+  for (const auto& t : tris) {  // Moller-Trumbore, counting hits at t > 0
+    const Vec3& a = pts[size_t(t[0])];
+    const Vec3 e1 = sub(pts[size_t(t[1])], a), e2 = sub(pts[size_t(t[2])], a);
+    const Vec3 p = cross(d, e2);
+    const double det = dot(e1, p);
     if (std::fabs(det) < 1e-300) continue;  // the ray is parallel to the triangle
-    const Vec3 s{x[0] - a[0], x[1] - a[1], x[2] - a[2]};
-    const double u = (s[0] * p[0] + s[1] * p[1] + s[2] * p[2]) / det;
+    const Vec3 s = sub(x, a);
+    const double u = dot(s, p) / det;
     if (u < 0 || u > 1) continue;
-    const Vec3 q{s[1] * e1[2] - s[2] * e1[1], s[2] * e1[0] - s[0] * e1[2], s[0] * e1[1] - s[1] * e1[0]};
-    const double v = (d[0] * q[0] + d[1] * q[1] + d[2] * q[2]) / det;
+    const Vec3 q = cross(s, e1);
+    const double v = dot(d, q) / det;
     if (v < 0 || u + v > 1) continue;
-    if ((e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) / det > 0) ++crossings;
+    if (dot(e2, q) / det > 0) ++crossings;
   }
   return crossings % 2 == 1;
 }
@@ -534,7 +535,7 @@ VolumeMeshResult buildVolumeMesh(const BoundarySurface& s, const VolumeMeshParam
     // regions itself.
     std::vector<JobResult> jobs;
     if (!unplaced) jobs = runTetgenJobs(inputs, switches, threads, ctx, 0.0, 0.9);
-    std::string failure = unplaced ? "unplaced" : "";
+    std::string failure = unplaced ? "a cavity with no hole point outside the material" : "";
     for (size_t j = 0; j < jobs.size() && failure.empty(); ++j)
       if (!jobs[j].ok)
         failure = "material " + std::to_string(inputs[j].label) + ": " + jobs[j].error;
@@ -565,8 +566,8 @@ VolumeMeshResult buildVolumeMesh(const BoundarySurface& s, const VolumeMeshParam
       return result;
     }
     if (unplaced)
-      ctx.debug("Volume meshing: a cavity of the labelled Delaunay is not bounded by the surface; "
-                "the whole surface is meshed at once.");
+      ctx.debug("Volume meshing: " + failure + " (the surface does not bound a cavity of the "
+                "labelled Delaunay); the whole surface is meshed at once.");
     else
       ctx.warn("Volume meshing per material with TetGen switches '" + switches + "' failed (" +
                failure + "); the whole surface is meshed at once instead.");
