@@ -227,9 +227,11 @@ void MeshingRun::particleSystem() {
 }
 
 void MeshingRun::boundaryMesh() {
+  BoundaryMeshParameters bp = params_.boundary;
+  bp.sizeAt = state_.sizing;
   state_.surface = buildInterfaceSurface(*state_.field, state_.particles,
                                          state_.particleSystem.particles, state_.samples,
-                                         state_.junctions, params_.boundary, ctx_);
+                                         state_.junctions, bp, ctx_);
 }
 
 void MeshingRun::volumeMesh() {

@@ -3,7 +3,8 @@
 // three slabs on a line, four materials at a point, a one-voxel plate, a thin rod, materials cut
 // by the volume box, nested thin shells), each through the whole pipeline at default settings with
 // Optimize on and off: the mesh stays conformal, no tet has zero or negative volume, every
-// material is still there with its volume within 0.5 % (the one-voxel plate: 0.75 %, see below),
+// material is still there with its volume within 0.5 % (the one-voxel plate at default settings:
+// 0.75 %, see below),
 // the worst angle only rises and stays above its measured floor, and the run is
 // the same twice for the same seed and thread count.
 
@@ -17,6 +18,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -35,30 +37,37 @@ struct Shape {
   double minWorst = 0;
   /// Largest relative change of a material's volume (issue 12: 0.5 %).
   double maxVolumeChange = 5e-3;
+  /// The run's facet_angle (degrees; 0 = the default, off).
+  double facetAngle = 0;
 };
 
 std::ostream& operator<<(std::ostream& os, const Shape& s) { return os << s.name; }
 
 std::vector<Shape> shapes() {
   using namespace femesher::test;
-  // Measured worst angle without -> with Optimize: spheres 0.03 -> 10.6, slabs 0.06 -> 12.7,
-  // four at a point 0.04 -> 8.5, plate 0.06 -> 3.5, rod 0.01 -> 0.70, cut by the box 1.3 -> 13.6,
-  // shells 0.06 -> 5.0. The plate (one voxel thick, a third of the element size) and the rod
-  // (2 x 2 voxels) are issue 12's open item 3, thin parts: their surfaces hold no room for a
-  // well-shaped tet (the rod keeps 189 tets below 5 deg), and the plate loses 0.64 % of its
-  // volume (the 0.4 % peeling budget, the specks peeling cuts off, the boundary slides), above
-  // the 0.5 % the issue allows: its bound here is 0.75 % until sampling gives thin parts points.
-  return {{"two_touching_spheres", twoSpheres(), 10.5},
-          {"three_slabs_on_a_line", threeSlabs(), 12.5},
-          {"four_materials_at_a_point", fourAtAPoint(), 8.4},
-          {"one_voxel_plate", oneVoxelPlate(), 3.4, 7.5e-3},
-          {"thin_rod", thinRod(), 0.65},
-          {"materials_cut_by_the_box", ballsInShellWithoutBackground(24), 13.5},
-          {"nested_thin_shells", nestedThinShells(), 4.9}};
+  // Measured worst angle without -> with Optimize (2026-11-27, with the rounds after coarsening):
+  // spheres 0.03 -> 15.0, slabs 0.06 -> 15.0, four at a point 0.04 -> 15.0, plate 0.06 -> 11.1,
+  // plate with facet_angle 10 0.02 -> 15.0, rod 0.01 -> 5.5, cut by the box 1.3 -> 15.0, shells
+  // 0.06 -> 14.6 (before those rounds: 10.6, 12.7, 8.5, 3.5, -, 0.70, 13.6, 5.0). The plate (one
+  // voxel thick, a third of the element size) and the rod (2 x 2 voxels) are issue 12's open item
+  // 3, thin parts: the rod's surface holds needles no later stage mends, and at default settings
+  // the plate loses 0.69 % of its volume (the 0.4 % peeling budget, the specks peeling cuts off,
+  // the boundary slides), above the 0.5 % the issue allows: its bound here is 0.75 %. With
+  // facet_angle 10 it keeps the issue's 0.5 % (0.46 %), which is why that row is here.
+  return {{"two_touching_spheres", twoSpheres(), 14.5},
+          {"three_slabs_on_a_line", threeSlabs(), 14.5},
+          {"four_materials_at_a_point", fourAtAPoint(), 14.5},
+          {"one_voxel_plate", oneVoxelPlate(), 10.5, 7.5e-3},
+          {"one_voxel_plate_facet_angle_10", oneVoxelPlate(), 14.5, 5e-3, 10.0},
+          {"thin_rod", thinRod(), 5.0},
+          {"materials_cut_by_the_box", ballsInShellWithoutBackground(24), 14.5},
+          {"nested_thin_shells", nestedThinShells(), 14.0}};
 }
 
-PipelineResult mesh(const LabelVolume& v, bool optimize) {
+PipelineResult mesh(const Shape& s, bool optimize) {
+  const LabelVolume& v = s.volume;
   MeshingParameters p;
+  p.boundary.facetShape.minAngleDegrees = s.facetAngle;
   p.run.threads = 2;
   p.run.computeFidelity = false;
   if (!optimize) p.optimize.targetMinDihedral = 0;  // TetGen's mesh as it is
@@ -74,7 +83,7 @@ class OptimizeShapes : public ::testing::TestWithParam<Shape> {};
 
 TEST_P(OptimizeShapes, ConformalVolumesKeptWorstAngleOnlyRisesDeterministic) {
   const Shape& s = GetParam();
-  const PipelineResult off = mesh(s.volume, false), on = mesh(s.volume, true);
+  const PipelineResult off = mesh(s, false), on = mesh(s, true);
   ASSERT_FALSE(off.mesh.tets.empty());
   ASSERT_FALSE(on.mesh.tets.empty());
   expectConformal(on.mesh);
@@ -85,8 +94,10 @@ TEST_P(OptimizeShapes, ConformalVolumesKeptWorstAngleOnlyRisesDeterministic) {
   EXPECT_GT(smallest, 0.0) << "a tet of zero or negative volume";
 
   const auto vOff = labelVolumes(off.mesh), vOn = labelVolumes(on.mesh);
+  double largestChange = 0;
   for (const auto& [label, vol] : vOff) {
     ASSERT_TRUE(vOn.count(label)) << "label " << label;
+    largestChange = std::max(largestChange, std::fabs(vOn.at(label) - vol) / vol);
     EXPECT_NEAR(vOn.at(label), vol, s.maxVolumeChange * vol) << "label " << label << ": volume changed";
   }
 
@@ -95,13 +106,16 @@ TEST_P(OptimizeShapes, ConformalVolumesKeptWorstAngleOnlyRisesDeterministic) {
   EXPECT_GE(worstOn, worstOff) << "the optimised mesh's worst tet is flatter";
   EXPECT_GE(worstOn, s.minWorst) << "flatter than before";
 
-  const PipelineResult again = mesh(s.volume, true);
+  const PipelineResult again = mesh(s, true);
   EXPECT_EQ(again.mesh.points, on.mesh.points) << "not deterministic";
   EXPECT_EQ(again.mesh.tets, on.mesh.tets) << "not deterministic";
   EXPECT_EQ(again.mesh.tetLabels, on.mesh.tetLabels) << "not deterministic";
 
-  std::printf("[optimize-shapes] %s: %zu -> %zu tets, worst %.2f -> %.2f deg\n", s.name.c_str(),
-              off.mesh.tets.size(), on.mesh.tets.size(), worstOff, worstOn);
+  std::printf(
+      "[optimize-shapes] %s: %zu -> %zu tets, worst %.2f -> %.2f deg, largest volume change "
+      "%.3f %%\n",
+      s.name.c_str(), off.mesh.tets.size(), on.mesh.tets.size(), worstOff, worstOn,
+      100 * largestChange);
 }
 
 INSTANTIATE_TEST_SUITE_P(GeneratedShapes, OptimizeShapes, ::testing::ValuesIn(shapes()),

@@ -134,7 +134,9 @@ void addLocalDelaunaySurface(const IndicatorField& field, const std::vector<Vec3
   // its last-resort closure come from the restricted Delaunay surface of the particles,
   // without the points the refinement above inserted.
   const bool refined =
-      surface.refinementPoints + surface.voxelCentrePoints + surface.junctionPoints > 0;
+      surface.refinementPoints + surface.shapePoints + surface.voxelCentrePoints +
+          surface.junctionPoints >
+      0;
   BoundarySurface particlesOnly;
   if (refined) {
     BoundaryMeshParameters unrefined;
@@ -207,6 +209,8 @@ BoundarySurface buildBoundaryMesh(const IndicatorField& field, const std::vector
   BoundarySurface out;
   if (facetDistance > 0) {
     out.refinementPoints = refineFacetDistance(field, *ld, facetDistance, ctx);
+    if (params.sizeAt && params.facetShape.minAngleDegrees > 0)
+      out.shapePoints = refineFacetShape(field, *ld, params.sizeAt, params.facetShape, ctx);
     if (params.voxelRefinement) out.voxelCentrePoints = refineVoxelCentres(field, *ld, ctx);
   }
   if (junctions && !junctions->particles.empty() && facetDistance > 0 && particlesAreVertices &&
@@ -277,6 +281,7 @@ std::vector<std::pair<std::string, double>> reportCounts(const InterfaceSurface&
           {"junction_particles_on_triple_edges", s.junctionShare},
           {"surface_open_edges", double(countOpenEdges(surface.triangles, surface.trianglePairs))},
           {"surface_refinement_points", double(surface.refinementPoints)},
+          {"facet_shape_refinement_points", double(surface.shapePoints)},
           {"voxel_centre_refinement_points", double(surface.voxelCentrePoints)},
           {"junction_refinement_points", double(surface.junctionPoints)},
           {"ldt_open_edges", double(ldt.openEdgesAfter)},

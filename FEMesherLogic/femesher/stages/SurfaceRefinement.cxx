@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
+#include <femesher/VecMath.h>
 #include <femesher/stages/IndicatorFunctions.h>
 #include <femesher/stages/Junctions.h>
 #include <femesher/stages/LabelledDelaunay.h>
@@ -10,6 +11,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <unordered_map>
 
 namespace femesher {
@@ -329,39 +331,50 @@ JunctionRefinement JunctionRefiner::run() {
 
 }  // namespace
 
-size_t refineFacetDistance(const IndicatorField& field, LabelledDelaunay& delaunay, double delta,
-                           RunContext& ctx) {
-  Delaunay& dt = delaunay.impl->dt;
+namespace {
+
+/// An interface triangle of the labelled Delaunay: its corners (sorted, so the arithmetic on
+/// them does not depend on which side it was seen from), its labels a < b, and one of its two
+/// cells with the facet's index there.
+struct InterfaceFacet {
+  std::array<Vec3, 3> p;
+  int a, b;
+  Delaunay::Cell_handle cell;
+  int index;
+};
+
+/// The rounds every facet refinement shares: round 0 looks at every interface facet, later rounds
+/// only at the facets of cells created by the previous round's insertions (the cells incident to
+/// the new vertices; the rest did not change). `candidateOf(facet)` gives the facet's point (in
+/// parallel; deviation 0 = none); the points go in through insertCandidates and the cells around
+/// them are relabelled, until a round finds or inserts nothing (at most kRefineRounds). `name`
+/// heads the debug lines. Returns the number of points inserted.
+template <class CandidateOf>
+size_t refineInterfaceFacets(const IndicatorField& field, Delaunay& dt, const char* name,
+                             RunContext& ctx, const CandidateOf& candidateOf) {
   const PreprocessedVolume& vol = field.volume();
   const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
   const int threads = resolveThreads(ctx.threads());
   size_t inserted = 0;
-  struct Facet {
-    std::array<Vec3, 3> p;
-    int a, b;
-  };
-  // Round 0 looks at every interface facet; later rounds only at the facets of cells created by
-  // the previous round's insertions (the cells incident to the new vertices), the rest did not
-  // change.
   std::vector<Delaunay::Vertex_handle> fresh;
-  auto addFacet = [](std::vector<Facet>& out, Delaunay::Cell_handle c, int i) {
+  auto addFacet = [](std::vector<InterfaceFacet>& out, Delaunay::Cell_handle c, int i) {
     const auto n = c->neighbor(i);
     if (c->info() == n->info()) return;
-    Facet x;
+    InterfaceFacet x;
     x.a = std::min(c->info(), n->info());
     x.b = std::max(c->info(), n->info());
+    x.cell = c;
+    x.index = i;
     for (int k = 0; k < 3; ++k) {
       const Point& q = c->vertex((i + 1 + k) % 4)->point();
       x.p[size_t(k)] = {q.x(), q.y(), q.z()};
     }
-    // The same facet seen from either cell gives the same candidate to the last bit (the
-    // arithmetic below depends on the vertex order).
     std::sort(x.p.begin(), x.p.end());
     out.push_back(x);
   };
   for (int round = 0; round < kRefineRounds; ++round) {
     const auto t0 = std::chrono::steady_clock::now();
-    std::vector<Facet> facets;
+    std::vector<InterfaceFacet> facets;
     if (round == 0) {
       for (auto f = dt.finite_facets_begin(); f != dt.finite_facets_end(); ++f)
         addFacet(facets, f->first, f->second);
@@ -389,10 +402,104 @@ size_t refineFacetDistance(const IndicatorField& field, LabelledDelaunay& delaun
           addFacet(facets, keyed[q].second.first, keyed[q].second.second);
     }
     std::vector<Candidate> cand(facets.size(), Candidate{0, {0, 0, 0}, 0});
-    parallelFor(facets.size(), threads, [&](size_t lo, size_t hi, int) {
-      for (size_t i = lo; i < hi; ++i) {
-        if ((i & 0xFFFF) == 0 && ctx.isCanceled()) return;
-        const Facet& F = facets[i];
+    parallelFor(
+        facets.size(), threads,
+        [&](size_t lo, size_t hi, int) {
+          for (size_t i = lo; i < hi; ++i) {
+            if ((i & 0xFFFF) == 0 && ctx.isCanceled()) return;
+            cand[i] = candidateOf(facets[i]);
+          }
+        },
+        64);  // most facets return at once, a few march and bisect: many chunks balance them
+    ctx.checkCancel();
+    const size_t found = size_t(std::count_if(cand.begin(), cand.end(),
+                                              [](const Candidate& c) { return c.deviation != 0; }));
+    if (found == 0) break;
+    fresh = insertCandidates(field, dt, std::move(cand), smin, threads);
+    const size_t roundInserted = fresh.size();
+    inserted += roundInserted;
+    ctx.debug(std::string(name) + " refinement round " + std::to_string(round) + ": " +
+              std::to_string(facets.size()) + " facets checked, " + std::to_string(found) +
+              " to refine, " + std::to_string(roundInserted) + " points inserted (" +
+              std::to_string(secondsSince(t0)) + " s)");
+    if (roundInserted == 0) break;
+    relabelAround(field, dt, fresh, threads);
+  }
+  return inserted;
+}
+
+/// Clips the segment [from, to] (canonical mm) to the grid's box (Liang-Barsky in voxel
+/// coordinates); false when it misses the box.
+bool clipToGrid(const PreprocessedVolume& vol, Vec3& from, Vec3& to) {
+  const Vec3 p = vol.canonicalToLocal(from), q = vol.canonicalToLocal(to);
+  double t0 = 0, t1 = 1;
+  for (int k = 0; k < 3; ++k) {
+    const double d = q[k] - p[k], hi = vol.dims[k] - 1;
+    if (d == 0) {
+      if (p[k] < 0 || p[k] > hi) return false;
+      continue;
+    }
+    double ta = (0 - p[k]) / d, tb = (hi - p[k]) / d;
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+  }
+  if (t0 > t1) return false;
+  const Vec3 a = from, b = to;
+  for (int k = 0; k < 3; ++k) {
+    from[k] = a[k] + t0 * (b[k] - a[k]);
+    to[k] = a[k] + t1 * (b[k] - a[k]);
+  }
+  return true;
+}
+
+/// The first crossing of the interface between labels a and b (f_a = f_b) on the segment from
+/// `from` to `to` (canonical mm), marched in steps of at most `step` then bisected; false when
+/// f_a - f_b keeps its sign.
+bool crossingOnSegment(const IndicatorField& field, int a, int b, const Vec3& from, const Vec3& to,
+                       double step, Vec3& out) {
+  const PreprocessedVolume& vol = field.volume();
+  auto at = [&](double t) {
+    return Vec3{from[0] + t * (to[0] - from[0]), from[1] + t * (to[1] - from[1]),
+                from[2] + t * (to[2] - from[2])};
+  };
+  auto phi = [&](double t) {
+    const Vec3 l = vol.canonicalToLocal(at(t));
+    return field.eval(a, l) - field.eval(b, l);
+  };
+  const double len = std::sqrt(dist2(from, to));
+  const int steps = std::max(1, std::min(512, int(std::ceil(len / step))));
+  const bool s0 = phi(0) <= 0;
+  double tIn = 0, tOut = -1;
+  for (int k = 1; k <= steps; ++k) {
+    const double t = double(k) / steps;
+    if ((phi(t) <= 0) != s0) {
+      tIn = double(k - 1) / steps;
+      tOut = t;
+      break;
+    }
+  }
+  if (tOut < 0) return false;
+  for (int it = 0; it < 40; ++it) {
+    const double mid = 0.5 * (tIn + tOut);
+    if ((phi(mid) <= 0) == s0)
+      tIn = mid;
+    else
+      tOut = mid;
+  }
+  out = at(0.5 * (tIn + tOut));
+  return true;
+}
+
+}  // namespace
+
+size_t refineFacetDistance(const IndicatorField& field, LabelledDelaunay& delaunay, double delta,
+                           RunContext& ctx) {
+  const PreprocessedVolume& vol = field.volume();
+  const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+  const Candidate none{0, {0, 0, 0}, 0};
+  return refineInterfaceFacets(
+      field, delaunay.impl->dt, "Facet-distance", ctx, [&](const InterfaceFacet& F) -> Candidate {
         Vec3 e[3], g{0, 0, 0};
         double minEdge = 1e300, maxEdge = 0;
         for (int k = 0; k < 3; ++k) {
@@ -406,7 +513,7 @@ size_t refineFacetDistance(const IndicatorField& field, LabelledDelaunay& delaun
         Vec3 nrm{e[0][1] * e[1][2] - e[0][2] * e[1][1], e[0][2] * e[1][0] - e[0][0] * e[1][2],
                  e[0][0] * e[1][1] - e[0][1] * e[1][0]};
         const double nl = std::sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]);
-        if (!(nl > 0) || minEdge < 2 * delta) continue;
+        if (!(nl > 0) || minEdge < 2 * delta) return none;
         for (auto& x : nrm) x /= nl;
         // The deviation is sampled at the centroid and at the three edge midpoints (a facet can
         // be close at its centroid and far along an edge); the farthest sample is the candidate.
@@ -457,25 +564,104 @@ size_t refineFacetDistance(const IndicatorField& field, LabelledDelaunay& delaun
           bestDeviation = std::fabs(t);
           best = q;
         }
-        if (bestDeviation == 0) continue;
-        cand[i] = {bestDeviation, best, 0.5 * minEdge};
-      }
-    }, 64);  // most facets return at once, a few march and bisect: many chunks balance them
-    ctx.checkCancel();
-    const size_t tooFar = size_t(std::count_if(
-        cand.begin(), cand.end(), [](const Candidate& c) { return c.deviation != 0; }));
-    if (tooFar == 0) break;
-    fresh = insertCandidates(field, dt, std::move(cand), smin, threads);
-    const size_t roundInserted = fresh.size();
-    inserted += roundInserted;
-    ctx.debug("Facet-distance refinement round " + std::to_string(round) + ": " +
-              std::to_string(facets.size()) + " facets checked, " + std::to_string(tooFar) +
-              " too far, " + std::to_string(roundInserted) + " points inserted (" +
-              std::to_string(secondsSince(t0)) + " s)");
-    if (roundInserted == 0) break;
-    relabelAround(field, dt, fresh, threads);
-  }
-  return inserted;
+        if (bestDeviation == 0) return none;
+        return Candidate{bestDeviation, best, 0.5 * minEdge};
+      });
+}
+
+size_t refineFacetShape(const IndicatorField& field, LabelledDelaunay& delaunay,
+                        const std::function<double(const Vec3&)>& sizeAt,
+                        const FacetShapeCriteria& criteria, RunContext& ctx) {
+  const Delaunay& dt = delaunay.impl->dt;
+  const PreprocessedVolume& vol = field.volume();
+  const double smin = std::min({vol.spacing[0], vol.spacing[1], vol.spacing[2]});
+  const double sinBound = std::sin(criteria.minAngleDegrees * M_PI / 180.0);
+  const double tol = 0.002;  // voxels: inside the grid, as snapToBox puts points on its box
+  const Candidate none{0, {0, 0, 0}, 0};
+  auto circumcentre = [](Delaunay::Cell_handle c) {
+    const Point q = CGAL::circumcenter(c->vertex(0)->point(), c->vertex(1)->point(),
+                                       c->vertex(2)->point(), c->vertex(3)->point());
+    return Vec3{q.x(), q.y(), q.z()};
+  };
+  return refineInterfaceFacets(
+      field, delaunay.impl->dt, "Facet-shape", ctx, [&](const InterfaceFacet& F) -> Candidate {
+        std::array<double, 3> len;
+        for (int k = 0; k < 3; ++k)
+          len[size_t(k)] = std::sqrt(dist2(F.p[size_t(k)], F.p[size_t((k + 1) % 3)]));
+        std::sort(len.begin(), len.end());
+        const Vec3 u = sub(F.p[1], F.p[0]), v = sub(F.p[2], F.p[0]);
+        Vec3 nrm = cross(u, v);
+        const double twiceArea = norm(nrm);
+        // The smallest angle lies between the two longest edges.
+        if (!(twiceArea > 0) || twiceArea >= sinBound * len[1] * len[2]) return none;
+        Vec3 g;
+        for (int a = 0; a < 3; ++a) g[a] = (F.p[0][a] + F.p[1][a] + F.p[2][a]) / 3.0;
+        const double h = sizeAt(g);
+        if (!(len[2] > criteria.sizeFactor * h)) return none;
+        for (auto& x : nrm) x /= twiceArea;
+        auto inGrid = [&](const Vec3& x) {
+          const Vec3 l = vol.canonicalToLocal(x);
+          for (int k = 0; k < 3; ++k)
+            if (l[k] < -tol || l[k] > vol.dims[k] - 1 + tol) return false;
+          return true;
+        };
+        // Near the volume's box (within a voxel, not on it) a point would make flat tets against
+        // the box's own points: the box faces are left to the other refinements.
+        auto usable = [&](const Vec3& q) {
+          if (!inGrid(q)) return false;
+          const Vec3 l = vol.canonicalToLocal(q);
+          if (field.snapToBox(l, smin) != l) return false;
+          const int am = field.argmax(l);
+          return am == F.a || am == F.b;
+        };
+        // The surface Delaunay ball's centre: where the dual Voronoi edge crosses the interface.
+        // The edge runs from circumcentre to circumcentre, or, next to the infinite cell, from the
+        // finite cell's circumcentre outwards along the normal; it is clipped to the grid. The ball
+        // is empty, so every vertex is at least its radius from the centre.
+        Delaunay::Cell_handle c = F.cell, n = c->neighbor(F.index);
+        if (dt.is_infinite(c)) std::swap(c, n);
+        Vec3 from = circumcentre(c), to;
+        if (!dt.is_infinite(n)) {
+          to = circumcentre(n);
+        } else {
+          const Point& o = c->vertex(c->index(n))->point();
+          Vec3 out = nrm;
+          if (dot(out, sub(Vec3{o.x(), o.y(), o.z()}, F.p[0])) > 0)
+            for (auto& x : out) x = -x;
+          const double reach = std::fabs(dot(out, sub(from, F.p[0]))) + 2 * len[2];
+          to = {from[0] + reach * out[0], from[1] + reach * out[1], from[2] + reach * out[2]};
+        }
+        Vec3 q;
+        if (clipToGrid(vol, from, to) &&
+            crossingOnSegment(field, F.a, F.b, from, to, 0.25 * smin, q) && usable(q)) {
+          const double r = std::sqrt(dist2(q, F.p[0]));
+          if (r <= 2 * len[2]) return Candidate{len[2] / h, q, 0.5 * r};
+        }
+        // Else (a flat cell's circumcentre far away, or the hull's outside): the longest edge's
+        // midpoint, moved along the triangle's normal onto the interface.
+        int longest = 0;
+        for (int k = 1; k < 3; ++k)
+          if (dist2(F.p[size_t(k)], F.p[size_t((k + 1) % 3)]) >
+              dist2(F.p[size_t(longest)], F.p[size_t((longest + 1) % 3)]))
+            longest = k;
+        const Vec3 &e0 = F.p[size_t(longest)], &e1 = F.p[size_t((longest + 1) % 3)];
+        const Vec3 mid{0.5 * (e0[0] + e1[0]), 0.5 * (e0[1] + e1[1]), 0.5 * (e0[2] + e1[2])};
+        const double reach = 0.75 * len[2];
+        Vec3 best;
+        double bestDistance = 1e300;
+        for (double sgn : {1.0, -1.0}) {
+          const Vec3 to{mid[0] + sgn * reach * nrm[0], mid[1] + sgn * reach * nrm[1],
+                        mid[2] + sgn * reach * nrm[2]};
+          if (!crossingOnSegment(field, F.a, F.b, mid, to, 0.25 * smin, q) || !usable(q)) continue;
+          const double d = dist2(q, mid);
+          if (d < bestDistance) {
+            bestDistance = d;
+            best = q;
+          }
+        }
+        if (bestDistance == 1e300) return none;
+        return Candidate{len[2] / h, best, std::min(0.25 * len[2], 0.4 * h)};
+      });
 }
 
 size_t refineVoxelCentres(const IndicatorField& field, LabelledDelaunay& delaunay,

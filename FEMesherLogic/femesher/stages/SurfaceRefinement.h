@@ -20,6 +20,7 @@
 #include <femesher/Types.h>
 
 #include <cstddef>
+#include <functional>
 
 namespace femesher {
 
@@ -37,6 +38,25 @@ struct Junctions;
 /// around the points the previous round inserted. Returns the number of points inserted.
 size_t refineFacetDistance(const IndicatorField& field, LabelledDelaunay& delaunay,
                            double facetDistance, RunContext& ctx);
+
+/// The facet-shape criterion of refineFacetShape.
+struct FacetShapeCriteria {
+  double minAngleDegrees = 10;  ///< a triangle with a smaller angle is refined ...
+  double sizeFactor = 1.5;      ///< ... when its longest edge exceeds this × the sizing field
+};
+
+/// Facet shape (CGAL's facet_angle, gated by size): an interface triangle (a, b) with an angle
+/// below criteria.minAngleDegrees whose longest edge is longer than criteria.sizeFactor × the
+/// target edge length `sizeAt` (canonical mm) at its centroid gets its surface Delaunay ball's
+/// centre inserted: where the dual Voronoi edge (from circumcentre to circumcentre, or from the
+/// finite cell's circumcentre outwards along the normal) crosses f_a = f_b, inside the grid and
+/// not in a third material. The ball is empty, so the point is as far from every vertex as from
+/// the triangle's. These needles are what a sampling on the surface only leaves on thin, straight
+/// parts (a rod two voxels across: the convex hull's triangles run along it), and no later stage
+/// can mend them. Returns the number of points inserted.
+size_t refineFacetShape(const IndicatorField& field, LabelledDelaunay& delaunay,
+                        const std::function<double(const Vec3&)>& sizeAt,
+                        const FacetShapeCriteria& criteria, RunContext& ctx);
 
 /// Voxel centres: every voxel centre next to another label (6-neighbourhood) must fall in a tet
 /// of its own label (the label map's own test of the mesh, and what Dice counts). A centre that
