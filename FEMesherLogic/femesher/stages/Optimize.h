@@ -87,8 +87,9 @@
 /// Then the interior is coarsened (coarsenMinDihedral, with a size function `sizeAt`): interior
 /// vertices with an edge shorter than coarsenShortEdge × the size are collapsed onto a neighbour
 /// when the new tets stay at or above min(coarsenMinDihedral, the star's worst) (see below).
-/// The tets still below the target then get the regular and inserting rounds once more, in their
-/// coarsened neighbourhood (each operation still only raises the worst tet it touches).
+/// With insertVertices, the tets still below the target then get the regular and inserting rounds
+/// once more, in their coarsened neighbourhood (each operation still only raises the worst tet it
+/// touches).
 /// Last, floating fragments (minFragmentVoxels; ten times larger when they hold a tet below the
 /// target) are removed.
 /// Interface triangles change only by these moves and flips, which relabel or re-triangulate

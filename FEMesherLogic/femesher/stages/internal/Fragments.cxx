@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Floating fragment removal, the last step of the Optimize stage (see Optimize.h,
-// OptimizeParameters::minFragmentVoxels).
+// OptimizeParameters::minFragmentVoxels), and eraseTets, the compaction it uses.
 #include <femesher/VecMath.h>
 #include <femesher/stages/internal/OptimizeEditor.h>
 
@@ -80,4 +80,30 @@ void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 
 }
 
 }  // namespace optimize_detail
+
+// eraseTets: see Optimize.h (the compaction removeFragments, MeshCheck and Optimize share).
+void eraseTets(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
+               std::vector<int32_t>& labels, const std::vector<char>& erase) {
+  size_t n = 0;
+  for (size_t t = 0; t < tets.size(); ++t)
+    if (!erase[t]) {
+      tets[n] = tets[t];
+      labels[n++] = labels[t];
+    }
+  tets.resize(n);
+  labels.resize(n);
+  std::vector<int32_t> newIndex(points.size(), -1);
+  for (const auto& T : tets)
+    for (int32_t v : T) newIndex[size_t(v)] = 0;
+  size_t m = 0;
+  for (size_t i = 0; i < points.size(); ++i)
+    if (newIndex[i] == 0) {
+      newIndex[i] = int32_t(m);
+      points[m++] = points[i];
+    }
+  points.resize(m);
+  for (auto& T : tets)
+    for (int32_t& v : T) v = newIndex[size_t(v)];
+}
+
 }  // namespace femesher
