@@ -89,7 +89,8 @@ struct BoundarySurface {
 /// is refined until every interface triangle's centroid is within that distance of the
 /// interface f_a = f_b (points inserted on the interface, farthest first, never closer than half
 /// the triangle's shortest edge to another vertex; at most 10 rounds), then, with
-/// params.voxelRefinement, the voxel centres (each next to another label must fall in a tet of
+/// params.sizeAt and params.facetShape.minAngleDegrees > 0, the needle triangles
+/// (refineFacetShape), then, with params.voxelRefinement, the voxel centres (each next to another label must fall in a tet of
 /// its label), then, with `junctions` (whose particles must be the first points; may be null),
 /// the triple lines (refineJunctionEdges). Triangles are oriented from first into second label
 /// and sorted (LabelledDelaunay::interfaceTriangles).

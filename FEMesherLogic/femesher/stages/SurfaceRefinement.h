@@ -4,7 +4,7 @@
 /// Stage 8's refinements of a labelled Delaunay triangulation (LabelledDelaunay.h): points are
 /// inserted on the interfaces where the restricted Delaunay surface of the particles strays from
 /// the labels, and the tets around them are relabelled. BoundaryMesh.h runs them in this order:
-/// facet distance, voxel centres, junction edges.
+/// facet distance, facet shape (only with facet_angle > 0), voxel centres, junction edges.
 ///
 /// Every inserted point is on an interface f_a = f_b of the indicator functions (or, for the
 /// junction refinement, on a triple line) and is put exactly on the input's box when within 0.002
@@ -15,7 +15,7 @@
 /// depend on the thread count. Canonical frame (mm). Cancel is checked between rounds (throws the
 /// Canceled error of RunContext::checkCancel).
 ///
-/// Precondition for all three: the triangulation is labelled (LabelledDelaunay::label).
+/// Precondition for all four: the triangulation is labelled (LabelledDelaunay::label).
 
 #include <femesher/Types.h>
 
