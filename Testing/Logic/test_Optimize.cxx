@@ -663,11 +663,13 @@ TEST(Optimize, PhantomMeshKeepsItsMaterialInterfacesAndLosesSlivers) {
               r.edgeRemovals, r.faceFlips, r.smoothedVertices, r.peeledTets, r.insertedVertices);
 }
 
-// The phantom at default settings: edge splits (on interfaces too) are what lifts the tets no
-// other operation helps; the mesh stays conformal, the material volumes stay, and fewer tets end
-// below the target than without splits.
-TEST(Optimize, EdgeSplitsOnThePhantomLiftTheTetsNothingElseHelps) {
-  const LabelVolume v = makePhantom();
+// A one-voxel plate at default settings: edge splits (on interfaces too) are what lifts the tets
+// no other operation helps; the mesh stays conformal, the material volumes stay, and fewer tets end
+// below the target than without splits, the worst higher (2026-11-27: 95 -> 1 tets below 15
+// degrees, worst 10.0 -> 14.9; on the phantom the rounds repeated after coarsening now reach the
+// target without splits too).
+TEST(Optimize, EdgeSplitsOnAOneVoxelPlateLiftTheTetsNothingElseHelps) {
+  const LabelVolume v = femesher::test::oneVoxelPlate();
   auto run = [&](bool split) {
     MeshingParameters p;
     p.optimize.splitEdges = split;
@@ -690,9 +692,10 @@ TEST(Optimize, EdgeSplitsOnThePhantomLiftTheTetsNothingElseHelps) {
   EXPECT_EQ(meshLabels(with.mesh), meshLabels(without.mesh));
   EXPECT_LT(count(with, "optimize_tets_below_target_after"),
             count(without, "optimize_tets_below_target_after"));
+  EXPECT_GT(count(with, "optimize_min_dihedral_after"), count(without, "optimize_min_dihedral_after"));
   const auto vw = volumes(with.mesh), vo = volumes(without.mesh);
   for (const auto& [label, vol] : vo) EXPECT_NEAR(vw.at(label), vol, 5e-3 * vol) << label;
-  std::printf("[optimize] phantom edge splits %g: below target %g -> %g, worst %.2f -> %.2f deg\n",
+  std::printf("[optimize] plate edge splits %g: below target %g -> %g, worst %.2f -> %.2f deg\n",
               count(with, "optimize_split_edges"), count(without, "optimize_tets_below_target_after"),
               count(with, "optimize_tets_below_target_after"),
               count(without, "optimize_min_dihedral_after"), count(with, "optimize_min_dihedral_after"));

@@ -83,15 +83,19 @@
 /// Volume budgets: interface moves, relabelling, interface flips and edge collapses may change a
 /// material's volume (net, either sign) and peeling may remove from it 0.5 % of that volume
 /// together, peeling at most 0.4 %: what peeling leaves unused, the moves may use (a small
-/// material mended by moves and collapses rather than by peeling needs it).
+/// material mended by moves and collapses rather than by peeling needs it). Peeling's share
+/// includes the specks a peeled tet cuts off the mesh (pieces the last step would remove as
+/// floating fragments: they go with the tet), so that the stage changes no material's volume by
+/// more than 0.5 % beyond the floating fragments it removes without the rounds too.
 /// Then the interior is coarsened (coarsenMinDihedral, with a size function `sizeAt`): interior
 /// vertices with an edge shorter than coarsenShortEdge × the size are collapsed onto a neighbour
 /// when the new tets stay at or above min(coarsenMinDihedral, the star's worst) (see below).
 /// With insertVertices, the tets still below the target then get the regular and inserting rounds
-/// once more, in their coarsened neighbourhood (each operation still only raises the worst tet it
-/// touches).
-/// Last, floating fragments (minFragmentVoxels; ten times larger when they hold a tet below the
-/// target) are removed.
+/// again, in their coarsened neighbourhood, as long as that raises their worst tet or lowers their
+/// number (at most eight times; each operation still only raises the worst tet it touches).
+/// Floating fragments (minFragmentVoxels; ten times larger when they hold a tet below the
+/// target) are removed after the rounds; those lighter than minFragmentVoxels, which go whatever
+/// their tets, already before them, so that the rounds spend nothing on them.
 /// Interface triangles change only by these moves and flips, which relabel or re-triangulate
 /// whole tets: every interface triangle stays shared by the tets of both sides,
 /// so the mesh stays conformal. The result is

@@ -6,9 +6,43 @@
 
 #include <algorithm>
 #include <numeric>
+#include <unordered_set>
 
 namespace femesher {
 namespace optimize_detail {
+
+// specksCutOff: see OptimizeEditor.h.
+void specksCutOff(const Editor& m, uint32_t t, const int64_t nb[4], double minVolume,
+                  double badMinVolume, double target, std::vector<uint32_t>& specks) {
+  specks.clear();
+  if (!(minVolume > 0)) return;
+  constexpr size_t kMaxTets = 4096;  // a piece of more tets counts as heavy
+  const double limit = std::max(minVolume, badMinVolume);
+  std::unordered_set<uint32_t> seen{t};
+  std::vector<uint32_t> piece, stack;
+  for (int k = 0; k < 4; ++k) {
+    if (nb[k] < 0 || seen.count(uint32_t(nb[k]))) continue;
+    seen.insert(uint32_t(nb[k]));
+    piece.assign(1, uint32_t(nb[k]));
+    stack.assign(1, uint32_t(nb[k]));
+    double volume = 0, worst = 180;
+    while (!stack.empty() && volume < limit && piece.size() < kMaxTets) {
+      const uint32_t s = stack.back();
+      stack.pop_back();
+      volume += std::fabs(m.volume(s));
+      worst = std::min(worst, m.quality(s));
+      for (int j = 0; j < 4; ++j) {
+        const auto f = m.face(s, j);
+        const int64_t o = m.across(s, f[0], f[1], f[2]);
+        if (o < 0 || !seen.insert(uint32_t(o)).second) continue;
+        piece.push_back(uint32_t(o));
+        stack.push_back(uint32_t(o));
+      }
+    }
+    if (stack.empty() && (volume < minVolume || (volume < badMinVolume && worst < target)))
+      specks.insert(specks.end(), piece.begin(), piece.end());
+  }
+}
 
 // removeFragments: see OptimizeEditor.h.
 void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,

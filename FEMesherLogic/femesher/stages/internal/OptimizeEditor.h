@@ -287,6 +287,14 @@ double faceDistance(const Editor& m, const OptimizeInterfaces& interfaces,
 bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& interfaces, int& kind,
                            double offset = 0);
 
+/// The pieces of the mesh that removing tet t would cut off (connected to the rest through t's
+/// faces only) and that the last step would remove as specks (removeFragments' rule: lighter than
+/// `minVolume` mm^3, or than `badMinVolume` with a tet below `target` degrees), into `specks`
+/// (their tets). Each piece is searched from a tet across one of t's faces (nb) until it is too
+/// heavy to be one.
+void specksCutOff(const Editor& m, uint32_t t, const int64_t nb[4], double minVolume,
+                  double badMinVolume, double target, std::vector<uint32_t>& specks);
+
 /// A floating piece with a tet below the target angle goes when lighter than this many times
 /// the fragment limit (OptimizeParameters::minFragmentVoxels).
 constexpr double kBadFragmentFactor = 10;
