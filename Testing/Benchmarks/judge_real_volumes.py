@@ -2,15 +2,17 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Mesh every label map in the data folder (and the built-in phantom) and judge the *written* mesh.
 
-  judge_real_volumes.py [--build build] [--data DIR] [--threads 2] [--keep DIR] [--set k=v ...]
-                        [--json out.json] [NAME ...]   (NAME: file names in DIR, or "phantom")
+  judge_real_volumes.py [--build build] [--judge-build DIR] [--data DIR] [--threads 2] [--keep DIR]
+                        [--set k=v ...] [--json out.json] [NAME ...]   (NAME: file names in DIR, or
+                        "phantom")
 
 Each volume is meshed at default parameters (plus --set) to a .vtu; the figures are then computed
 by `femesher quality OUT.vtu --labels IN --json`, i.e. from the file as a stranger reads it, not from
 the run's own report. Printed per volume: tets, worst dihedral angle, share of tets below 5/10/15
 degrees, zero-or-negative volumes, the smallest volume Dice over labels of at least 1,000 voxels,
 mesh->labels boundary distance p99 (voxels), the Optimize stage's seconds and the run's seconds.
-Timings are printed, never asserted."""
+Timings are printed, never asserted. With --judge-build, the meshes of --build (an older checkout,
+say) are judged by another build's `femesher quality`: today's reader on yesterday's meshes."""
 import argparse
 import glob
 import json
@@ -22,6 +24,7 @@ import time
 ap = argparse.ArgumentParser()
 ap.add_argument("names", nargs="*")
 ap.add_argument("--build", default="build")
+ap.add_argument("--judge-build", help="build whose `femesher quality` judges the meshes (default: --build)")
 ap.add_argument("--data", default=os.environ.get("FEMESHER_DATA_DIR",
                 os.path.join(os.path.dirname(os.path.abspath(__file__)), "../../../shared/data")))
 ap.add_argument("--threads", type=int, default=2)
@@ -30,10 +33,19 @@ ap.add_argument("--set", action="append", default=[])
 ap.add_argument("--json")
 args = ap.parse_args()
 femesher = os.path.abspath(os.path.join(args.build, "bin", "femesher"))
-# The binary's RUNPATH names the build tree it was linked in: a copy of a build (a frozen binary
-# next to its own lib/) must load its own FEMesher library, not the one being rebuilt there.
-os.environ["LD_LIBRARY_PATH"] = os.pathsep.join(
-    [os.path.abspath(os.path.join(args.build, "lib"))] + [x for x in [os.environ.get("LD_LIBRARY_PATH")] if x])
+judge = os.path.abspath(os.path.join(args.judge_build or args.build, "bin", "femesher"))
+
+
+def build_env(build):
+    # The binary's RUNPATH names the build tree it was linked in: a copy of a build (a frozen binary
+    # next to its own lib/) must load its own FEMesher library, not the one being rebuilt there.
+    env = dict(os.environ)
+    env["LD_LIBRARY_PATH"] = os.pathsep.join(
+        [os.path.abspath(os.path.join(build, "lib"))] + [x for x in [os.environ.get("LD_LIBRARY_PATH")] if x])
+    return env
+
+
+mesh_env, judge_env = build_env(args.build), build_env(args.judge_build or args.build)
 out = args.keep or tempfile.mkdtemp(prefix="judge_")
 os.makedirs(out, exist_ok=True)
 names = args.names or (["phantom"] + sorted(os.path.basename(p) for p in glob.glob(os.path.join(args.data, "*"))
@@ -44,7 +56,7 @@ print("|---|---|---|---|---|---|---|---|---|---|---|---|")
 for name in names:
     if name == "phantom":
         path = os.path.join(out, "phantom.nrrd")
-        subprocess.run([femesher, "phantom", path], check=True, capture_output=True)
+        subprocess.run([femesher, "phantom", path], check=True, capture_output=True, env=mesh_env)
     else:
         path = os.path.join(args.data, name)
     stem = name.split(".")[0]
@@ -52,7 +64,7 @@ for name in names:
     sets = [x for kv in args.set for x in ("--set", kv)]
     t = time.time()
     p = subprocess.run([femesher, "mesh", path, "-o", vtu, "--report", rep, "--threads", str(args.threads), "-q", *sets],
-                       capture_output=True, text=True)
+                       capture_output=True, text=True, env=mesh_env)
     wall = time.time() - t
     if p.returncode not in (0, 10):
         print("| %s | failed (exit %d): %s |" % (name, p.returncode, p.stderr.strip()[-200:]))
@@ -60,8 +72,8 @@ for name in names:
         continue
     r = json.load(open(rep))
     opt = sum(s["seconds"] for s in r["stages"] if s["name"] == "Optimize")
-    j = json.loads(subprocess.run([femesher, "quality", vtu, "--labels", path, "--json"], check=True,
-                                  capture_output=True, text=True).stdout)
+    j = json.loads(subprocess.run([judge, "quality", vtu, "--labels", path, "--json"], check=True,
+                                  capture_output=True, text=True, env=judge_env).stdout)
     q, f = j["quality"], j["fidelity"]
     n = max(1, q["all"]["tets"])
     big = [m for m in f["materials"] if m["voxels"] >= 1000] or f["materials"]

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Floating fragment removal, the last step of the Optimize stage (see Optimize.h,
-// OptimizeParameters::minFragmentVoxels), and eraseTets, the compaction it uses.
+// What the Optimize stage removes from the outer boundary (see Optimize.h): peeling of flat tets
+// with an outer face, the specks a peeled tet cuts off, and floating fragments
+// (OptimizeParameters::minFragmentVoxels); and eraseTets, the compaction they use.
 #include <femesher/VecMath.h>
 #include <femesher/stages/internal/OptimizeEditor.h>
 
@@ -10,6 +11,119 @@
 
 namespace femesher {
 namespace optimize_detail {
+
+namespace {
+
+/// True when a face (other than of tet t) on the outer boundary holds both u and v.
+bool outerEdge(const Editor& m, uint32_t t, int32_t u, int32_t v) {
+  for (uint32_t s : m.around[size_t(u)]) {
+    if (s == t || !m.has(s, v)) continue;
+    for (int k = 0; k < 4; ++k) {
+      const int32_t w = m.tets[s][size_t(k)];
+      if (w == u || w == v) continue;
+      const auto f = m.face(s, k);
+      if (m.across(s, f[0], f[1], f[2]) < 0) return true;
+    }
+  }
+  return false;
+}
+
+/// True when the three vertices of f lie on one plane of the volume's box.
+bool onBoxPlane(const Editor& m, const OptimizeInterfaces& in, const std::array<int32_t, 3>& f) {
+  return (in.boxPlanes(m.pts[size_t(f[0])]) & in.boxPlanes(m.pts[size_t(f[1])]) &
+          in.boxPlanes(m.pts[size_t(f[2])])) != 0;
+}
+
+/// The facet-distance rule of peeling (Optimize.h): t's outer faces on the box have their apex
+/// within the facet distance of the box plane, its other
+/// faces, which become outer faces of the tets behind them, lie within the facet distance of
+/// those tets' interface with the background, and the outer boundary stays a manifold (the edge
+/// or vertex that comes to the surface is not on it already). nb: the tet across each face.
+bool peelKeepsFacetDistance(const Editor& m, uint32_t t, const int64_t nb[4], int outer,
+                            const OptimizeInterfaces& in) {
+  if (!in.enabled() || outer == 0 || outer == 4 || !(m.thickness(t) <= 2 * in.facetDistance))
+    return false;
+  const auto& T = m.tets[t];
+  std::vector<int32_t> up;  // the vertices opposite t's outer faces
+  for (int k = 0; k < 4; ++k) {
+    const auto f = m.face(t, k);
+    if (nb[k] < 0) {
+      // A face on the volume's box gives way only to faces within the facet distance of its
+      // plane (the apex is that close): the box stays flat to that distance.
+      const int planes = onBoxPlane(m, in, f) ? in.boxPlanes(m.pts[size_t(f[0])]) &
+                                                    in.boxPlanes(m.pts[size_t(f[1])]) &
+                                                    in.boxPlanes(m.pts[size_t(f[2])])
+                                              : 0;
+      for (size_t a = 0; a < 3; ++a)
+        for (int side = 0; side < 2; ++side)
+          if (planes & ((1 + side) << (2 * a))) {
+            const double plane = side ? in.boxHi[a] : in.boxLo[a];
+            if (std::fabs(m.pts[size_t(T[size_t(k)])][a] - plane) > in.facetDistance) return false;
+          }
+      up.push_back(T[size_t(k)]);
+      continue;
+    }
+    const double d = faceDistance(m, in, f, 0, m.labels[size_t(nb[k])]);
+    if (d < 0 || d > in.facetDistance) return false;
+  }
+  if (outer == 2 && outerEdge(m, t, up[0], up[1])) return false;
+  if (outer == 1) {  // the vertex opposite the outer face must be inside the mesh
+    int32_t inner = -1;
+    for (int k = 0; k < 4; ++k)
+      if (nb[k] < 0) inner = T[size_t(k)];
+    for (uint32_t s : m.around[size_t(inner)])
+      for (int k = 0; k < 4; ++k) {
+        if (s == t || m.tets[s][size_t(k)] == inner) continue;
+        const auto f = m.face(s, k);
+        if (m.across(s, f[0], f[1], f[2]) < 0) return false;
+      }
+  }
+  return true;
+}
+
+}  // namespace
+
+// peel: see OptimizeEditor.h.
+bool peel(Editor& m, uint32_t t, const OptimizeParameters& params, double share,
+          const OptimizeInterfaces& in, std::vector<uint32_t>& fresh) {
+  const double tolerance = params.peelDistance * params.voxelSize;
+  const size_t label = size_t(m.labels[t]);
+  if (tolerance <= 0 || m.perLabel[label] <= 1) return false;
+  int64_t nb[4];
+  int outer = 0;
+  for (int k = 0; k < 4; ++k) {
+    const auto f = m.face(t, k);
+    nb[k] = m.across(t, f[0], f[1], f[2]);
+    outer += nb[k] < 0;
+  }
+  if (outer == 0) return false;
+  // A cap (three or four outer faces) may be as thick as the facet distance: removing it
+  // replaces its outer faces by the one below them.
+  const double capTolerance = in.enabled() ? in.facetDistance : 0.0;
+  if (!(m.thickness(t) <= (outer >= 3 ? std::max(tolerance, capTolerance) : tolerance)) &&
+      !peelKeepsFacetDistance(m, t, nb, outer, in))
+    return false;
+  const double fragment = params.minFragmentVoxels * params.voxelVolume;
+  std::vector<uint32_t> specks;
+  specksCutOff(m, t, nb, fragment, kBadFragmentFactor * fragment, params.targetMinDihedral, specks);
+  std::vector<double> cost(m.perLabel.size(), 0);
+  std::vector<size_t> count(m.perLabel.size(), 0);
+  cost[label] += m.volume(t);
+  ++count[label];
+  for (uint32_t s : specks) {
+    cost[size_t(m.labels[s])] += std::fabs(m.volume(s));
+    ++count[size_t(m.labels[s])];
+  }
+  for (size_t l = 0; l < cost.size(); ++l)
+    if (count[l] > 0 && (count[l] >= m.perLabel[l] || !m.peelFits(l, cost[l], share))) return false;
+  for (size_t l = 0; l < cost.size(); ++l) m.peeledVolume[l] += cost[l];
+  for (uint32_t s : specks) m.kill(s);
+  m.kill(t);
+  for (int64_t s : nb)
+    if (s >= 0) fresh.push_back(uint32_t(s));
+  return true;
+}
+
 
 // specksCutOff: see OptimizeEditor.h.
 void specksCutOff(const Editor& m, uint32_t t, const int64_t nb[4], double minVolume,

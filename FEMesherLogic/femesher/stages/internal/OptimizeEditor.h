@@ -287,6 +287,13 @@ double faceDistance(const Editor& m, const OptimizeInterfaces& interfaces,
 bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& interfaces, int& kind,
                            double offset = 0);
 
+/// Removes a flat tet with a face on the outer boundary (peeling, see Optimize.h; in
+/// internal/Fragments.cxx); the tets across its other faces (now on the outer boundary) go to
+/// `fresh`. The specks it cuts off (specksCutOff) go with it, and their volume counts in the
+/// peeling budget of their materials.
+bool peel(Editor& m, uint32_t t, const OptimizeParameters& params, double share,
+          const OptimizeInterfaces& in, std::vector<uint32_t>& fresh);
+
 /// The pieces of the mesh that removing tet t would cut off (connected to the rest through t's
 /// faces only) and that the last step would remove as specks (removeFragments' rule: lighter than
 /// `minVolume` mm^3, or than `badMinVolume` with a tet below `target` degrees), into `specks`
