@@ -632,6 +632,24 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
       if (queue.empty() || !(worstOf(queue) > worstBefore + kEps || queue.size() < badBefore)) break;
     }
   }
+  // The last resort: a tet still below the warning angle with a face on the outer boundary goes
+  // (with the specks it cuts off) even beyond the peeling budget: a flat element is worse for a
+  // solver than a small material losing a speck more (a box-sized label of 133 tets whose flat
+  // corner tet held 0.6 mm^3 of specks, 0.8 % of it, in a random volume).
+  for (int again = 0; again < kRescueTimes && params.minDihedralWarning > 0; ++again) {
+    std::vector<std::pair<double, uint32_t>> flat;
+    for (uint32_t t = 0; t < tets.size(); ++t)
+      if (m.alive[t] && m.quality(t) < params.minDihedralWarning) flat.emplace_back(m.quality(t), t);
+    std::sort(flat.begin(), flat.end());
+    size_t peeled = 0;
+    for (const auto& [q, t] : flat)
+      if (m.alive[t] && m.quality(t) < params.minDihedralWarning &&
+          peel(m, t, params, 1.0, interfaces, fresh, true))
+        ++peeled;
+    r.overBudgetPeels += peeled;
+    r.peeledTets += peeled;
+    if (peeled == 0) break;
+  }
   // Compact: alive tets, used points (order kept).
   std::vector<char> dead(tets.size());
   for (size_t t = 0; t < tets.size(); ++t) dead[t] = !m.alive[t];
@@ -699,6 +717,7 @@ ReportCounts reportCounts(const OptimizeResult& r) {
           {"optimize_off_interface_moves", double(r.offInterfaceMoves)},
           {"optimize_interface_flips", double(r.interfaceFlips)},
           {"optimize_peeled_tets", double(r.peeledTets)},
+          {"optimize_over_budget_peels", double(r.overBudgetPeels)},
           {"optimize_relabelled_tets", double(r.relabelledTets)},
           {"optimize_inserted_vertices", double(r.insertedVertices)},
           {"optimize_collapsed_edges", double(r.collapsedEdges)},

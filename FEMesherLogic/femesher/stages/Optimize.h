@@ -93,6 +93,8 @@
 /// With insertVertices, the tets still below the target then get the regular and inserting rounds
 /// again, in their coarsened neighbourhood, as long as that raises their worst tet or lowers their
 /// number (at most eight times; each operation still only raises the worst tet it touches).
+/// Last resort, a tet still below `minDihedralWarning` with a face on the outer boundary is peeled
+/// (with the specks it cuts off) even beyond the volume budget (optimize_over_budget_peels).
 /// Floating fragments (minFragmentVoxels; ten times larger when they hold a tet below the
 /// target) are removed after the rounds; those lighter than minFragmentVoxels, which go whatever
 /// their tets, already before them, so that the rounds spend nothing on them.
@@ -215,6 +217,7 @@ struct OptimizeResult {
   size_t offInterfaceMoves = 0;   ///< last-resort moves of an interface vertex off its interface
   size_t interfaceFlips = 0;      ///< interface edge flips
   size_t peeledTets = 0;        ///< flat boundary tets removed
+  size_t overBudgetPeels = 0;   ///< of those, tets below the warning angle peeled beyond the budget
   size_t relabelledTets = 0;    ///< flat interface tets given to the neighbouring material
   size_t insertedVertices = 0;  ///< vertices inserted (see insertVertices)
   size_t collapsedEdges = 0;    ///< short edges collapsed (see collapseEdges)
@@ -230,7 +233,8 @@ struct OptimizeResult {
 /// optimize_min_dihedral_before/after, optimize_edge_removals, optimize_face_flips,
 /// optimize_smoothed_vertices, optimize_interface_vertex_moves, optimize_triple_line_vertex_moves,
 /// optimize_junction_vertex_moves,
-/// optimize_interface_flips, optimize_peeled_tets, optimize_relabelled_tets,
+/// optimize_interface_flips, optimize_peeled_tets, optimize_over_budget_peels,
+/// optimize_relabelled_tets,
 /// optimize_inserted_vertices, optimize_collapsed_edges, optimize_split_edges,
 /// optimize_coarsened_vertices,
 /// optimize_fragments_removed, optimize_fragment_tets, optimize_fragment_volume_mm3, optimize_passes.

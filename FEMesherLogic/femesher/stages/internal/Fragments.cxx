@@ -85,7 +85,7 @@ bool peelKeepsFacetDistance(const Editor& m, uint32_t t, const int64_t nb[4], in
 
 // peel: see OptimizeEditor.h.
 bool peel(Editor& m, uint32_t t, const OptimizeParameters& params, double share,
-          const OptimizeInterfaces& in, std::vector<uint32_t>& fresh) {
+          const OptimizeInterfaces& in, std::vector<uint32_t>& fresh, bool overBudget) {
   const double tolerance = params.peelDistance * params.voxelSize;
   const size_t label = size_t(m.labels[t]);
   if (tolerance <= 0 || m.perLabel[label] <= 1) return false;
@@ -115,7 +115,8 @@ bool peel(Editor& m, uint32_t t, const OptimizeParameters& params, double share,
     ++count[size_t(m.labels[s])];
   }
   for (size_t l = 0; l < cost.size(); ++l)
-    if (count[l] > 0 && (count[l] >= m.perLabel[l] || !m.peelFits(l, cost[l], share))) return false;
+    if (count[l] > 0 && (count[l] >= m.perLabel[l] || (!overBudget && !m.peelFits(l, cost[l], share))))
+      return false;
   for (size_t l = 0; l < cost.size(); ++l) m.peeledVolume[l] += cost[l];
   for (uint32_t s : specks) m.kill(s);
   m.kill(t);

@@ -290,9 +290,9 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& inter
 /// Removes a flat tet with a face on the outer boundary (peeling, see Optimize.h; in
 /// internal/Fragments.cxx); the tets across its other faces (now on the outer boundary) go to
 /// `fresh`. The specks it cuts off (specksCutOff) go with it, and their volume counts in the
-/// peeling budget of their materials.
+/// peeling budget of their materials; `overBudget`: even beyond that budget (the last resort).
 bool peel(Editor& m, uint32_t t, const OptimizeParameters& params, double share,
-          const OptimizeInterfaces& in, std::vector<uint32_t>& fresh);
+          const OptimizeInterfaces& in, std::vector<uint32_t>& fresh, bool overBudget = false);
 
 /// The pieces of the mesh that removing tet t would cut off (connected to the rest through t's
 /// faces only) and that the last step would remove as specks (removeFragments' rule: lighter than
