@@ -135,6 +135,10 @@ void specksCutOff(const Editor& m, uint32_t t, const int64_t nb[4], double minVo
   const double limit = std::max(minVolume, badMinVolume);
   std::unordered_set<uint32_t> seen{t};
   std::vector<uint32_t> piece, stack;
+  std::vector<std::vector<uint32_t>> pieces;  // the light pieces found whole
+  std::vector<double> weights;
+  size_t wholeTets = 0;
+  bool heavy = false;
   for (int k = 0; k < 4; ++k) {
     if (nb[k] < 0 || seen.count(uint32_t(nb[k]))) continue;
     seen.insert(uint32_t(nb[k]));
@@ -154,9 +158,25 @@ void specksCutOff(const Editor& m, uint32_t t, const int64_t nb[4], double minVo
         stack.push_back(uint32_t(o));
       }
     }
-    if (stack.empty() && (volume < minVolume || (volume < badMinVolume && worst < target)))
-      specks.insert(specks.end(), piece.begin(), piece.end());
+    if (!stack.empty()) {
+      heavy = true;
+      continue;
+    }
+    wholeTets += piece.size();
+    if (volume < minVolume || (volume < badMinVolume && worst < target)) {
+      pieces.push_back(piece);
+      weights.push_back(volume);
+    }
   }
+  // When the pieces found hold every other tet of the mesh (a mesh lighter than the limit), the
+  // heaviest of them is the mesh that stays, not a speck.
+  size_t alive = 0;
+  for (size_t n : m.perLabel) alive += n;
+  if (!heavy && wholeTets + 1 >= alive && !pieces.empty()) {
+    const size_t keep = size_t(std::max_element(weights.begin(), weights.end()) - weights.begin());
+    pieces.erase(pieces.begin() + long(keep));
+  }
+  for (const auto& p : pieces) specks.insert(specks.end(), p.begin(), p.end());
 }
 
 // removeFragments: see OptimizeEditor.h.
