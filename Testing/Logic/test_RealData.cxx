@@ -131,23 +131,35 @@ void checkVolume(const LabelVolume& v, const MeshingParameters& p, const std::st
   for (const auto& t : r->timings) std::printf("[real-data]   %-20s %7.2f s\n", t.name.c_str(), t.seconds);
 }
 
+/// Reads the shared label map `file` into `out`; false when it is missing (a failure in CI) or
+/// unreadable (a failure).
+bool readShared(const std::string& file, LabelVolume& out) {
+  const std::string path = dataFile(file);
+  if (!std::filesystem::exists(path)) {
+    if (inCI()) ADD_FAILURE() << "missing data file " << path;
+    return false;
+  }
+  auto v = readLabelMap(path);
+  if (!v.isOk()) {
+    ADD_FAILURE() << v.status().message();
+    return false;
+  }
+  out = std::move(v).value();
+  return true;
+}
+
 class RealData : public ::testing::TestWithParam<Case> {};
 
 }  // namespace
 
 TEST_P(RealData, MeshesWithAllLabelsConformalAndFaithful) {
   const Case& c = GetParam();
-  const std::string path = dataFile(c.file);
-  if (!std::filesystem::exists(path)) {
-    if (inCI()) FAIL() << "missing data file " << path;
-    GTEST_SKIP() << "missing data file " << path;
-  }
-  auto v = readLabelMap(path);
-  ASSERT_TRUE(v.isOk()) << v.status().message();
+  LabelVolume v;
+  if (!readShared(c.file, v)) GTEST_SKIP() << "missing or unreadable " << c.file;
   MeshingParameters p;
   p.preprocess.minVoxels = c.minVoxels;
   PipelineResult r;
-  checkVolume(v.value(), p, c.file, c.minDice, &r, kMinVolumeDice, c.minWorstAngle);
+  checkVolume(v, p, c.file, c.minDice, &r, kMinVolumeDice, c.minWorstAngle);
   if (c.maxTets > 0)
     EXPECT_LE(r.mesh.tets.size(), c.maxTets) << c.file << ": more tets than before";
 }
@@ -158,18 +170,13 @@ TEST_P(RealData, MeshesWithAllLabelsConformalAndFaithful) {
 // of 0.38 and 0.20 degrees; now 5.7 and 7.6).
 TEST(RealDataTiny, CgalCellsKeepNoTetBelowTheWarningAngle) {
   for (const char* file : {"420.nrrd", "40420.nrrd", "12323.nrrd", "20012323.nrrd"}) {
-    const std::string path = dataFile(file);
-    if (!std::filesystem::exists(path)) {
-      if (inCI()) FAIL() << "missing data file " << path;
-      GTEST_SKIP() << "missing data file " << path;
-    }
-    auto v = readLabelMap(path);
-    ASSERT_TRUE(v.isOk()) << v.status().message();
+    LabelVolume v;
+    if (!readShared(file, v)) GTEST_SKIP() << "missing or unreadable " << file;
     MeshingParameters p;
     p.preprocess.minVoxels = 1;
     p.run.computeFidelity = false;
     RunContext ctx;
-    auto r = runPipeline(v.value(), p, ctx);
+    auto r = runPipeline(v, p, ctx);
     ASSERT_TRUE(r.isOk()) << file << ": " << r.status().message();
     const TetMesh& m = r.value().mesh;
     ASSERT_FALSE(m.tets.empty()) << file;
