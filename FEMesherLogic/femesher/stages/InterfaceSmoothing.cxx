@@ -257,7 +257,7 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
     }
     volumeChange(change);
     for (size_t l = 0; l < change.size(); ++l)
-      if (change[l] != 0 && !m.moveFits(l, change[l])) return false;
+      if (!m.moveFits(l, change[l])) return false;
     return in.boxPlanes(m.pts[size_t(v)]) == box;
   };
   if (!smoothVertex(m, v, &c)) return false;

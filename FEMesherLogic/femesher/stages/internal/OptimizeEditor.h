@@ -48,7 +48,9 @@ class Editor {
 
   /// True when material l's net moved volume may change by `change` (mm^3): the new |net moved
   /// volume| and the volume peeled from it stay within kVolumeBudget of its start volume together.
+  /// No change always fits (a material over its budget must not stop the moves of the others).
   bool moveFits(size_t l, double change) const {
+    if (change == 0) return true;
     return std::fabs(movedVolume[l] + change) + peeledVolume[l] <= kVolumeBudget * startVolume[l];
   }
   /// True when `v` mm^3 may pass from material `from` to material `to` (a tet relabelled).
