@@ -83,7 +83,8 @@ for name in names:
            "below15": 100 * q.get("min_dihedral_below_15deg", 0) / n,
            "nonpositive": q["inverted_tets"],
            "min_dice": min(m["dice"] for m in big), "dice": {str(m["label"]): m["dice"] for m in f["materials"]},
-           "m2l_p99": f["mesh_to_labels"]["p99"], "optimize_s": opt, "run_s": wall, "exit": p.returncode,
+           "m2l_p99": f["mesh_to_labels"]["p99"],
+           "l2m_p99": f["labels_to_mesh"]["p99"], "optimize_s": opt, "run_s": wall, "exit": p.returncode,
            "particle_iterations": r["counts"].get("particle_iterations"),
            "particle_converged": bool(r["counts"].get("particle_converged")),
            "stage_seconds": {s["name"]: s["seconds"] for s in r["stages"]}}
