@@ -52,7 +52,7 @@ struct SizingParameters {
   /// The uniform edge length in mm; 0 = automatic: edgeLengthFactor × the mean voxel spacing, at
   /// most a quarter of the labelled box's smallest side (tiny volumes still get a few elements).
   double targetEdgeLength = 0;
-  double edgeLengthFactor = 3.0;  ///< voxels (presets: coarse 4.5, default 3, fine 2)
+  double edgeLengthFactor = 3.0;  ///< voxels (presets: coarse 6, default 3, fine 1.5)
   double scale = 1.25;     ///< ε: h = ε × lfs ("detail" knob; smaller = more detail)
   double hMin = 0;         ///< mm; 0 = auto: half the uniform edge length
   double hMax = 0;         ///< mm; 0 = auto: 2.5 × the uniform edge length
