@@ -376,14 +376,9 @@ class RealDataJunctions : public ::testing::TestWithParam<std::string> {};
 }  // namespace
 
 TEST_P(RealDataJunctions, TripleLinesAreMeshEdges) {
-  const std::string path = dataFile(GetParam());
-  if (!std::filesystem::exists(path)) {
-    if (inCI()) FAIL() << "missing data file " << path;
-    GTEST_SKIP() << "missing data file " << path;
-  }
-  auto v = readLabelMap(path);
-  ASSERT_TRUE(v.isOk()) << v.status().message();
-  checkJunctionEdges(v.value(), GetParam());
+  LabelVolume v;
+  if (!readShared(GetParam(), v)) GTEST_SKIP() << "missing or unreadable " << GetParam();
+  checkJunctionEdges(v, GetParam());
 }
 
 INSTANTIATE_TEST_SUITE_P(SharedData, RealDataJunctions,
