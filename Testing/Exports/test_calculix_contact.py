@@ -116,7 +116,6 @@ def contact_case(name, order, coarser=(), source=None):
           "INP: *SURFACE INTERACTION with a linear pressure-overclosure slope")
     ck(re.search(r"^\*CONTACT PAIR, INTERACTION=SI_4_1, TYPE=SURFACE TO SURFACE\nCONTACT_4_1_S, CONTACT_4_1_M\n",
                     inp, re.M) is not None, "INP: *CONTACT PAIR, dependent (cartilage) surface first")
-    ck(re.search(r"^\*SURFACE, NAME=IF_1_4,", inp, re.M) is None, "INP: no tied IF_1_4 surface is left")
     ck(report.get("box_node_sets") == {} and "NSET=BOX_" not in inp,
           "the phantom does not reach its box: no BOX_ node sets (report %s)" % report.get("box_node_sets"))
 
@@ -142,6 +141,15 @@ def contact_case(name, order, coarser=(), source=None):
     s_nodes = sorted({n for e, s in slave for n in face_nodes(e, s)})
     m_nodes = sorted({n for e, s in master for n in face_nodes(e, s)})
     others = {n for e, el in elements.items() if label_of[e] not in (1, 4) for n in el}
+    # A cartilage|bone face stays tied only where the split cannot open it: each of its nodes is
+    # also held by a third material touching both sides (ContactSplit.h), a strip of interface
+    # one triangle wide between two triple lines. (The phantom had none until 2026-11-27; since
+    # the particle system's convergence it has one.)
+    tied = model.surfaces.get("IF_1_4", [])
+    ck(len(tied) <= max(1, len(slave) // 100)
+       and all(set(face_nodes(e, s)) <= others for e, s in tied),
+       "INP: tied IF_1_4 faces only where a third material holds all their nodes (%d of %d)"
+       % (len(tied), len(slave)))
     shared = set(s_nodes) & set(m_nodes)
     ck(len(shared) < len(s_nodes) // 5 and shared <= others,
           "the sides share %d of %d contact nodes, all on a third material (the implant)" % (len(shared), len(s_nodes)))

@@ -117,7 +117,7 @@ TEST(Parameters, UserDefaultsAreTheStageDefaults) {
   EXPECT_EQ(p.indicators.sigma, IndicatorParameters{}.sigma);
   EXPECT_EQ(getParameter(p, "sizing_scale"), "1.25");
   EXPECT_EQ(p.sizing.scale, SizingParameters{}.scale);
-  EXPECT_EQ(getParameter(p, "particle_iterations"), "15");
+  EXPECT_EQ(getParameter(p, "particle_iterations"), "20");
   EXPECT_EQ(p.particles.maxIterations, ParticleSystemParameters{}.maxIterations);
   EXPECT_EQ(getParameter(p, "facet_distance"), "0.5");
   EXPECT_EQ(p.boundary.facetDistance, BoundaryMeshParameters{}.facetDistance);

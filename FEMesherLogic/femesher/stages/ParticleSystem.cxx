@@ -235,6 +235,14 @@ void sendPreview(RunContext& ctx, const std::vector<Particle>& P, const Surface&
 
 using Neighbours = std::vector<std::pair<uint32_t, double>>;  ///< (particle, kernel support s)
 
+/// A particle's step control, carried from iteration to iteration: the damping factor of its
+/// Newton step (-1 until its first step) and its last move (canonical mm; zero when it did not
+/// move).
+struct StepState {
+  double f = -1;
+  Vec3 lastMove{0, 0, 0};
+};
+
 /// One iteration's forces, moves and projection (Jacobi: every move reads the positions at the
 /// start of the iteration only, so the result does not depend on the thread count).
 struct JacobiStep {
@@ -269,11 +277,11 @@ struct JacobiStep {
     nearestId.assign(n, -1);
   }
 
-  /// Moves every surface particle; `lambda` holds the per-particle step factors.
-  void run(int iteration, std::vector<double>& lambda, int threads) {
+  /// Moves every surface particle; `state` holds the per-particle step factors and last moves.
+  void run(int iteration, std::vector<StepState>& state, int threads) {
     parallelFor(P.size(), threads, [&](size_t b, size_t e, int) {
       Neighbours nb;
-      for (size_t i = b; i < e; ++i) relax(i, iteration, lambda[i], nb);
+      for (size_t i = b; i < e; ++i) relax(i, iteration, state[i], nb);
     });
   }
 
@@ -306,9 +314,11 @@ struct JacobiStep {
   }
 
   /// Particle i: nearest neighbour, energy, tangential force and stiffness, then the step.
-  void relax(size_t i, int iteration, double& f, Neighbours& nb) {
+  void relax(size_t i, int iteration, StepState& st, Neighbours& nb) {
     next[i] = P[i].local;
     if (P[i].junction >= 0) return;
+    const Vec3 last = st.lastMove;
+    st.lastMove = {0, 0, 0};
     neighbours(i, nb);
     for (const auto& [j, s] : nb) {
       const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
@@ -333,7 +343,7 @@ struct JacobiStep {
     for (int a = 0; a < 3; ++a) g[a] -= gn * nrm[i][a];
     const double gl = std::sqrt(dot(g, g));
     if (gl < 1e-12 || stiffness <= 0) return;
-    dampedNewtonStep(i, nb, e0, g, gl, stiffness, f);
+    dampedNewtonStep(i, nb, e0, g, gl, stiffness, last, st);
     // A seed that cannot be projected onto its interface at all is dropped.
     if (iteration == 0) {
       Vec3 check = next[i];
@@ -342,10 +352,14 @@ struct JacobiStep {
   }
 
   /// Damped Newton step along the tangential force g (length gl): -f g / H with H the summed
-  /// radial stiffness of the kernel; f adapts per particle (x1.25 on success, x0.5 on failure)
-  /// within [0.05, 0.5], which keeps the simultaneous (Jacobi) update from oscillating.
+  /// radial stiffness of the kernel; f adapts per particle within [0.05, 0.5]: x0.5 on a failed
+  /// attempt and on a move that turns back on the particle's last move (`last`; in a simultaneous
+  /// (Jacobi) update neighbours overshoot together and swing back and forth), x1.25 on any other
+  /// success. Without the halving on a reversal a tenth of the knee's particles kept swinging by
+  /// about 0.05 h per iteration however long the system ran.
   void dampedNewtonStep(size_t i, const Neighbours& nb, double e0, const Vec3& g, double gl,
-                        double stiffness, double& f) {
+                        double stiffness, const Vec3& last, StepState& st) {
+    double& f = st.f;
     if (f <= 0) f = 0.25;
     for (int attempt = 0; attempt < 3; ++attempt) {
       double step = f * gl / stiffness;
@@ -373,7 +387,8 @@ struct JacobiStep {
         next[i] = l;
         const Vec3 d{cp[0] - pos[i][0], cp[1] - pos[i][1], cp[2] - pos[i][2]};
         moved[i] = std::sqrt(dot(d, d)) / h[i];
-        f = std::min(f * 1.25, 0.5);
+        f = dot(d, last) < 0 ? std::max(f * 0.5, 0.05) : std::min(f * 1.25, 0.5);
+        st.lastMove = d;
         break;
       }
       f = std::max(f * 0.5, 0.05);
@@ -441,9 +456,9 @@ class PopulationControl {
            std::any_of(st_.lost.begin(), st_.lost.end(), [](char c) { return c != 0; });
   }
 
-  /// Removes and splits particles of `P` (the moved particles of the step), keeping `lambda`
-  /// aligned (-1 for new particles). Returns how many particles went or came.
-  size_t apply(std::vector<Particle>& P, std::vector<double>& lambda, ParticleSystemResult& res) {
+  /// Removes and splits particles of `P` (the moved particles of the step), keeping `state`
+  /// aligned (a fresh state for new particles). Returns how many particles went or came.
+  size_t apply(std::vector<Particle>& P, std::vector<StepState>& state, ParticleSystemResult& res) {
     const size_t n = P.size();
     lostNow = tooCloseNow = crowdedNow = 0;
     remove_.assign(n, 0);
@@ -464,20 +479,20 @@ class PopulationControl {
       if (populationStep_ && st_.energy[i] < params_.splitEnergyFactor * ideal(i)) split(P[i], i);
     }
     std::vector<Particle> kept;
-    std::vector<double> keptLambda;
+    std::vector<StepState> keptState;
     kept.reserve(n + added_.size());
     for (size_t i = 0; i < n; ++i)
       if (!remove_[i]) {
         kept.push_back(P[i]);
-        keptLambda.push_back(lambda[i]);
+        keptState.push_back(state[i]);
       }
     res.added += added_.size();
     for (const auto& q : added_) {
       kept.push_back(q);
-      keptLambda.push_back(-1.0);
+      keptState.push_back(StepState{});
     }
     P.swap(kept);
-    lambda.swap(keptLambda);
+    state.swap(keptState);
     return lostNow + tooCloseNow + crowdedNow + splits();
   }
 
@@ -655,9 +670,9 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
   ParticleSystemResult res;
   std::vector<Particle> P = initialParticles(S, seeds, junctions, sizing);
   const size_t nFixed = junctions.particles.size();
-  std::vector<double> lambda(P.size(), -1.0);  // per-particle step factors (-1: not yet set)
+  std::vector<StepState> state(P.size());  // per-particle step control
   int stableIterations = 0;
-  bool populationChanged = true;
+  bool populationSettled = false;
   const int threads = resolveThreads(ctx.threads());
 
   int iteration = 0;
@@ -665,19 +680,25 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
     ctx.checkCancel();
     // Forces, moves and projection.
     JacobiStep step(P, junctions, S, sizing, params.kernelScale, params.maxStepFactor, threads);
-    step.run(iteration, lambda, threads);
+    step.run(iteration, state, threads);
     for (size_t i = 0; i < P.size(); ++i) P[i].local = step.next[i];
     const double p95 = recordIteration(step, nFixed, iteration, res, ctx);
     stableIterations = p95 < params.tolerance ? stableIterations + 1 : 0;
+    // Convergence: small moves for the 3 iterations after a settled population step (then the
+    // population step due now is not taken).
+    const bool converged = stableIterations >= 3 && populationSettled;
 
-    // Population control: split and delete.
-    const bool populationStep =
-        (iteration + 1) % params.populationInterval == 0 && iteration + 1 < params.maxIterations;
+    // Population control: split and delete (lost seeds and near-duplicates at every iteration).
+    const bool populationStep = !converged && (iteration + 1) % params.populationInterval == 0 &&
+                                iteration + 1 < params.maxIterations;
     PopulationControl population(step, nFixed, iteration, populationStep, params);
     size_t changed = 0;
-    if (population.needed()) changed = population.apply(P, lambda, res);
+    const size_t before = P.size() - nFixed;
+    if (population.needed()) changed = population.apply(P, state, res);
     if (populationStep) {
-      populationChanged = changed > 0;
+      populationSettled = double(changed) <= params.populationTolerance * double(before);
+      // The particles a population step adds or frees must settle before the system can stop.
+      if (changed > 0) stableIterations = 0;
       ctx.debug("ParticleSystem iteration " + std::to_string(iteration) +
                 ": population step changed " + std::to_string(changed) + " particles (split " +
                 std::to_string(population.splits()) + ", too close " +
@@ -688,8 +709,7 @@ ParticleSystemResult runParticleSystem(const IndicatorField& field, const Surfac
     ctx.progress(double(iteration + 1) / params.maxIterations);
     sendPreview(ctx, P, S, input, iteration, false);
 
-    // Convergence: small moves for 3 iterations and no change in the last population step.
-    if (stableIterations >= 3 && !populationChanged) {
+    if (converged) {
       res.converged = true;
       ++iteration;
       break;
