@@ -56,6 +56,25 @@ std::map<int32_t, double> volumes(const TetMesh& m) {
 
 }  // namespace
 
+TEST(Optimize, ShortestVectorOfTheGradientsHullRaisesEveryOne) {
+  using femesher::optimize_detail::shortestInHull;
+  auto near = [](const Vec3& a, const Vec3& b) { return norm(sub(a, b)) < 1e-6; };
+  // One gradient: itself.
+  EXPECT_TRUE(near(shortestInHull({Vec3{0, 2, 0}}), Vec3{0, 2, 0}));
+  // Two orthogonal ones: the midpoint of the segment, which raises both.
+  EXPECT_TRUE(near(shortestInHull({Vec3{1, 0, 0}, Vec3{0, 1, 0}}), Vec3{0.5, 0.5, 0}));
+  // A fan whose shortest point is a vertex: (1, 0, 0) is nearer than any other point of the hull.
+  EXPECT_TRUE(near(shortestInHull({Vec3{1, 1, 0}, Vec3{1, 0, 0}, Vec3{1, -1, 0}, Vec3{3, 0, 1}}),
+                   Vec3{1, 0, 0}));
+  // Gradients that pull against each other (a max-min optimum): no direction raises all.
+  EXPECT_LT(norm(shortestInHull({Vec3{1, 0, 0}, Vec3{-1, 1, 0}, Vec3{-1, -1, 0}})), 1e-6);
+  // Whatever the set, the result x satisfies g . x >= |x|^2 for every g (first-order ascent).
+  const std::vector<Vec3> g{{2, 1, 0}, {0.5, 3, 1}, {1, -1, 2}, {1.5, 0.2, -0.3}};
+  const Vec3 x = shortestInHull(g);
+  ASSERT_GT(norm(x), 0.1);
+  for (const Vec3& gi : g) EXPECT_GE(dot(gi, x), dot(x, x) * (1 - 1e-6));
+}
+
 TEST(Optimize, MinDihedralOfRegularFlatAndInvertedTets) {
   const Vec3 a{1, 1, 1}, b{1, -1, -1}, c{-1, 1, -1}, d{-1, -1, 1};
   const double regular = tetMinDihedral(a, b, c, d) > 0 ? tetMinDihedral(a, b, c, d)
@@ -646,9 +665,11 @@ TEST(Optimize, PhantomMeshKeepsItsMaterialInterfacesAndLosesSlivers) {
   ASSERT_GT(belowBefore, 0u) << "nothing to optimise: the test would prove nothing";
   EXPECT_LT(double(belowAfter), 0.75 * double(belowBefore));  // measured: 1198 -> 589
   EXPECT_GT(r.edgeRemovals + r.faceFlips, 0u);
-  // Material volumes change only by what the peeled flat tets held and the boundary slides.
+  // Material volumes change only by what the peeled flat tets held and the boundary slides:
+  // within the stage's budget (Optimize.h: 0.5 % of a material's volume; measured 0.12 % on
+  // label 4).
   const auto vb = volumes(before), va = volumes(after);
-  for (const auto& [label, vol] : vb) EXPECT_NEAR(va.at(label), vol, 1e-3 * vol) << label;
+  for (const auto& [label, vol] : vb) EXPECT_NEAR(va.at(label), vol, 5e-3 * vol) << label;
   // Vertex insertion is what helps where nothing else does.
   EXPECT_GT(r.insertedVertices, 0u);
   TetMesh without = before;

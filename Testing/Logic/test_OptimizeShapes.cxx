@@ -51,12 +51,17 @@ std::vector<Shape> shapes() {
   // 0.06 -> 15.0 (with the rounds once: 11.1, 15.0, 5.5 for the plate, with facet_angle and the
   // rod). Largest volume change 0.42 % (spheres); the plate 0.35 % (before the specks counted:
   // 0.69 %, the flat tets at its rim went with the specks behind them, outside the budget).
+  // 2026-11-27 (session 20: the particle system converges, the hull ascent and three-ring
+  // insertion in the inserting rounds): plate 11.7, rod 9.3, the others 15.0. On the plate and the
+  // rod the worst tet swings by degrees with any change upstream (main's code of session 19 over
+  // the seeds 1-8: plate 9.6-14.9, rod 7.3-11.3, seed 1 the best of both), so their single-seed
+  // floors are only regression markers; OverEightSeeds below judges them by their spread.
   return {{"two_touching_spheres", twoSpheres(), 14.5},
           {"three_slabs_on_a_line", threeSlabs(), 14.5},
           {"four_materials_at_a_point", fourAtAPoint(), 14.5},
-          {"one_voxel_plate", oneVoxelPlate(), 14.5},
+          {"one_voxel_plate", oneVoxelPlate(), 11.5},
           {"one_voxel_plate_facet_angle_10", oneVoxelPlate(), 14.5, 5e-3, 10.0},
-          {"thin_rod", thinRod(), 10.5},
+          {"thin_rod", thinRod(), 9.0},
           {"materials_cut_by_the_box", ballsInShellWithoutBackground(24), 14.5},
           {"nested_thin_shells", nestedThinShells(), 14.0}};
 }
@@ -117,3 +122,39 @@ TEST_P(OptimizeShapes, ConformalVolumesKeptWorstAngleOnlyRisesDeterministic) {
 
 INSTANTIATE_TEST_SUITE_P(GeneratedShapes, OptimizeShapes, ::testing::ValuesIn(shapes()),
                          [](const ::testing::TestParamInfo<Shape>& info) { return info.param.name; });
+
+// The plate and the rod are where a thin part leaves nothing but surface vertices, and their worst
+// tet depends on the sampling's details: judged over eight seeds (mean and worst of the eight).
+// Measured 2026-11-27: plate mean 13.71, worst 11.6 (session 19's code: 13.44, 9.6); rod mean
+// 11.25, worst 8.7 (session 19's code: 9.40, 7.3).
+TEST(OptimizeShapesOverEightSeeds, ThinPlateAndRodWorstAngles) {
+  using namespace femesher::test;
+  struct Case {
+    const char* name;
+    LabelVolume volume;
+    double minMean, minWorst;
+  };
+  const Case cases[] = {{"one_voxel_plate", oneVoxelPlate(), 13.2, 11.0},
+                        {"thin_rod", thinRod(), 10.8, 8.4}};
+  for (const Case& c : cases) {
+    double sum = 0, worst = 180;
+    std::string all;
+    for (uint64_t seed = 1; seed <= 8; ++seed) {
+      MeshingParameters p;
+      p.run.threads = 2;
+      p.run.computeFidelity = false;
+      p.run.seed = seed;
+      RunContext ctx;
+      auto r = runPipeline(c.volume, p, ctx);
+      ASSERT_TRUE(r.isOk()) << c.name << " seed " << seed << ": " << r.status().message();
+      const double w = minOver(r->mesh.points, r->mesh.tets);
+      sum += w;
+      worst = std::min(worst, w);
+      all += " " + std::to_string(w).substr(0, 5);
+    }
+    EXPECT_GE(sum / 8, c.minMean) << c.name << ": worst angles" << all;
+    EXPECT_GE(worst, c.minWorst) << c.name << ": worst angles" << all;
+    std::printf("[optimize-shapes] %s over seeds 1-8: mean %.2f, worst %.2f deg (%s )\n", c.name,
+                sum / 8, worst, all.c_str());
+  }
+}

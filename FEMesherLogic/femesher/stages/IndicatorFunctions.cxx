@@ -360,8 +360,30 @@ double IndicatorField::boxDistance(const Vec3& l, Vec3* grad) const {
     return d;
   }
   if (grad) {
+    // Near an edge or a corner of the box (within the snapping tolerance of two or three faces)
+    // the gradient is the mean of those faces' normals, not the one face that happens to be a
+    // hair nearer: a point sliding along the edge would otherwise see its normal flip from one
+    // face's to the other's between two evaluations.
+    const double tolerance = 2e-3 * std::min({s[0], s[1], s[2]});
     *grad = {0, 0, 0};
-    (*grad)[insideAxis] = insideSign * s[insideAxis];
+    int faces = 0;
+    for (int a = 0; a < 3; ++a) {
+      const double below = (l[a] - boxLo_[a]) * s[a], above = (boxHi_[a] - l[a]) * s[a];
+      if (below <= inside + tolerance) {
+        (*grad)[a] -= s[a];
+        ++faces;
+      }
+      if (above <= inside + tolerance) {
+        (*grad)[a] += s[a];
+        ++faces;
+      }
+    }
+    if (faces <= 1) {
+      *grad = {0, 0, 0};
+      (*grad)[insideAxis] = insideSign * s[insideAxis];
+    } else {
+      for (double& x : *grad) x /= faces;
+    }
   }
   return -inside;
 }

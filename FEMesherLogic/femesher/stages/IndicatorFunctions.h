@@ -64,7 +64,10 @@ class IndicatorField {
   void corners(int m, int i, int j, int k, double out[8]) const;
   /// Trilinear f_m at a continuous local index.
   double eval(int m, const Vec3& l) const;
-  /// Gradient of the trilinear f_m (per local index unit).
+  /// Gradient of the trilinear f_m (per local index unit). Where the volume's box clips f_m, the
+  /// box's: its nearest face's normal, the mean of the faces' normals within 0.002 voxel of an
+  /// edge or a corner (a particle on a corner of CGAL's 20012323 saw its normal flip between
+  /// two faces' from one iteration to the next and its neighbours never settled).
   Vec3 gradient(int m, const Vec3& l) const;
   /// `l` moved exactly onto the input's box when it lies within `tolerance` mm of it (clamped
   /// into the box, then onto the nearest face), else unchanged. Projections onto the box faces

@@ -13,8 +13,10 @@
 ///    link polygon being re-triangulated optimally (dynamic programming over its triangulations);
 ///  - 2-to-3 face flips across a face inside one material;
 ///  - smoothing of interior vertices (vertices on no interface or boundary face): the vertex
-///    moves to the position that maximises the worst tet of its star (Laplacian candidate and a
-///    line search along the worst tet's gradient); a vertex of the outer boundary alone whose
+///    moves to the position that maximises the worst tet of its star (Laplacian candidate, then
+///    line searches along the shortest vector of the convex hull of the gradients of the star's
+///    tets within 0.5 degrees of its worst, which raises all of them to first order, or along the
+///    worst tet's gradient alone); a vertex of the outer boundary alone whose
 ///    boundary faces are flat (all their vertices within `peelDistance` of one plane) slides
 ///    within that plane the same way;
 ///  - peeling: a flat tet with a face on the mesh's outer boundary (faces with no other tet: the
@@ -56,7 +58,8 @@
 ///    the tet's two other faces, whose centroids must lie within the facet distance of the
 ///    smooth interface (and the volume budget of interface moves holds).
 ///  - vertex insertion (insertVertices), when nothing above helps a tet: a new vertex replaces the
-///    tet and its neighbours of the same material across unconstrained faces by a star of tets,
+///    tet and its neighbours of the same material across unconstrained faces (one, two, then three
+///    rings deep, the first that helps) by a star of tets,
 ///    and moves to where the star's worst tet is best; kept only when that beats the old worst.
 ///  - edge split (splitEdges), when insertion does not help either: the tet's edges, longest
 ///    first, are split at their midpoint together with every tet around the edge (any

@@ -11,6 +11,10 @@
 ///   with s = k * min(h_i, h_j) (k = `kernelScale`) from the sizing field h. Neighbours are the
 ///   particles of the same interface whose normals agree (n_i . n_j > 0.5, so the two sheets of a
 ///   thin layer do not interact) and the fixed junction particles whose label set contains a, b.
+///   (Measured 2026-11-27: with n_i . n_j > -0.5 or -0.2 example_seg's worst tet fell from 15 to
+///   7.6 and 6.4 degrees and example_seg_dicom gained 9 % tets.) On an edge or a corner of the
+///   volume's box the normal is the mean of its faces' (IndicatorField::gradient), so that it
+///   does not flip from one face's to the other's as the particle slides a hair.
 /// - Dynamics: Jacobi descent on the tangent plane with a damped Newton step (tangential force
 ///   over the summed kernel stiffness, times a per-particle factor that grows x1.25 on success and
 ///   shrinks x0.5 on failure or when the move turns back on the particle's last move; the energy

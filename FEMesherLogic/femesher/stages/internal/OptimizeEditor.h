@@ -80,6 +80,9 @@ class Editor {
   /// Per material: volume at the start, the net volume interface moves and relabelling added so
   /// far, and the volume peeling removed (mm^3).
   std::vector<double> startVolume, movedVolume, peeledVolume;
+  /// smoothVertex also ascends along the shortest vector of the hull of the nearly-worst tets'
+  /// gradients (set for the inserting rounds: the tets the cheaper moves could not mend).
+  bool hullAscent = false;
   /// Where each junction point that moved started (junction points stay near it).
   std::unordered_map<int32_t, Vec3> junctionStart;
 
@@ -222,9 +225,14 @@ struct MoveConstraint {
   std::function<bool()> accept;
 };
 
-/// Moves vertex v when that raises the worst tet of its star (Laplacian candidate, then a line
-/// search along the worst tet's gradient), within `constraint` when not null. True when moved.
+/// Moves vertex v when that raises the worst tet of its star (Laplacian candidate, then line
+/// searches along shortestInHull of the gradients of the tets within 0.5 degrees of the worst, or
+/// along the worst tet's gradient), within `constraint` when not null. True when moved.
 bool smoothVertex(Editor& m, int32_t v, const MoveConstraint* constraint);
+
+/// The point of the convex hull of `g` (not empty) nearest the origin (Gilbert's algorithm): when
+/// not zero, a direction in which every g_i rises to first order (g_i . x >= |x|^2 > 0).
+Vec3 shortestInHull(const std::vector<Vec3>& g);
 
 /// Edge removal (Optimize.h): re-triangulates the ring of edge (u, v) of tet t, all of t's
 /// material, when that raises the ring's worst tet; the new tets go to `fresh`. True when applied.
