@@ -164,7 +164,7 @@ TEST_P(RealData, MeshesWithAllLabelsConformalAndFaithful) {
   p.preprocess.minVoxels = c.minVoxels;
   PipelineResult r;
   checkVolume(v, p, c.file, c.minDice, &r, kMinVolumeDice, c.minWorstAngle);
-  // Issue 13: the particle system reaches its criterion within its default budget (15).
+  // Issue 13: the particle system reaches its criterion within its default budget (20).
   std::map<std::string, double> counts(r.counts.begin(), r.counts.end());
   EXPECT_EQ(counts["particle_converged"], 1.0)
       << c.file << ": the particle system stopped at its cap (" << counts["particle_iterations"]
