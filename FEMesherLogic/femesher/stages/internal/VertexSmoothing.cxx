@@ -152,7 +152,9 @@ bool smoothVertex(Editor& m, int32_t v, const MoveConstraint* constraint) {
     return false;
   };
   // hull: 0 = the worst tet's gradient only; 1 = that, then the hull's vector when it fails;
-  // 2 = the hull's vector, then the worst tet's gradient.
+  // 2 = the hull's vector, then the worst tet's gradient. `hullTried` is set when a hull of two or
+  // more gradients was searched.
+  bool hullTried = false;
   auto ascend = [&](int hull) {
     for (int iter = 0; iter < 8; ++iter) {
       const double h = 1e-4 * scale;
@@ -165,7 +167,10 @@ bool smoothVertex(Editor& m, int32_t v, const MoveConstraint* constraint) {
           if (t != uint32_t(worst) && gradients.size() < kMaxActive &&
               m.quality(t) < q0 + kActiveDegrees)
             gradients.push_back(gradientOf(t, h));
-        if (gradients.size() > 1) moved = lineSearch(shortestInHull(gradients));
+        if (gradients.size() > 1) {
+          hullTried = true;
+          moved = lineSearch(shortestInHull(gradients));
+        }
         if (!moved && hull == 2) moved = lineSearch(gWorst);
       }
       if (!moved) break;
@@ -178,6 +183,9 @@ bool smoothVertex(Editor& m, int32_t v, const MoveConstraint* constraint) {
     const double qFrom = q0;
     const int64_t worstFrom = worst;
     ascend(2);
+    // Without a hull of two or more gradients on its way, the first ascent made exactly the moves
+    // the second would make: nothing to compare.
+    if (!hullTried) return q0 > qStart + kEps;
     const Vec3 first = p;
     const double qFirst = q0;
     const int64_t worstFirst = worst;
