@@ -334,24 +334,13 @@ Vec3 IndicatorField::gradientRaw(int m, const Vec3& l) const {
 double IndicatorField::boxDistance(const Vec3& l, Vec3* grad) const {
   const Vec3& s = vol_->spacing;
   double out2 = 0, inside = std::numeric_limits<double>::infinity();
-  int insideAxis = 0;
-  double insideSign = 0;
   Vec3 excess{0, 0, 0};
   for (int a = 0; a < 3; ++a) {
     const double below = (boxLo_[a] - l[a]) * s[a], above = (l[a] - boxHi_[a]) * s[a];
     if (below > 0) excess[a] = -below;
     if (above > 0) excess[a] = above;
     out2 += excess[a] * excess[a];
-    if (-below < inside) {  // inside: the nearest face
-      inside = -below;
-      insideAxis = a;
-      insideSign = -1;
-    }
-    if (-above < inside) {
-      inside = -above;
-      insideAxis = a;
-      insideSign = 1;
-    }
+    inside = std::min({inside, -below, -above});  // inside: the distance to the nearest face
   }
   if (out2 > 0) {
     const double d = std::sqrt(out2);
@@ -360,30 +349,24 @@ double IndicatorField::boxDistance(const Vec3& l, Vec3* grad) const {
     return d;
   }
   if (grad) {
-    // Near an edge or a corner of the box (within the snapping tolerance of two or three faces)
-    // the gradient is the mean of those faces' normals, not the one face that happens to be a
-    // hair nearer: a point sliding along the edge would otherwise see its normal flip from one
-    // face's to the other's between two evaluations.
+    // The nearest face's normal; near an edge or a corner of the box (within the snapping
+    // tolerance of two or three faces) the mean of those faces' normals, not the one face that
+    // happens to be a hair nearer: a point sliding along the edge would otherwise see its normal
+    // flip from one face's to the other's between two evaluations.
     const double tolerance = 2e-3 * std::min({s[0], s[1], s[2]});
     *grad = {0, 0, 0};
     int faces = 0;
     for (int a = 0; a < 3; ++a) {
-      const double below = (l[a] - boxLo_[a]) * s[a], above = (boxHi_[a] - l[a]) * s[a];
-      if (below <= inside + tolerance) {
+      if ((l[a] - boxLo_[a]) * s[a] <= inside + tolerance) {
         (*grad)[a] -= s[a];
         ++faces;
       }
-      if (above <= inside + tolerance) {
+      if ((boxHi_[a] - l[a]) * s[a] <= inside + tolerance) {
         (*grad)[a] += s[a];
         ++faces;
       }
     }
-    if (faces <= 1) {
-      *grad = {0, 0, 0};
-      (*grad)[insideAxis] = insideSign * s[insideAxis];
-    } else {
-      for (double& x : *grad) x /= faces;
-    }
+    for (double& x : *grad) x /= faces;  // the nearest face always counts: faces >= 1
   }
   return -inside;
 }
