@@ -377,9 +377,10 @@ double tetMaxDihedralCos(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3
   return std::clamp(maxCos, -1.0, 1.0);
 }
 
+double cosToDegrees(double maxCos) { return maxCos > 1 ? -1 : std::acos(maxCos) * kRadToDeg; }
+
 double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
-  const double c0 = tetMaxDihedralCos(a, b, c, d);
-  return c0 > 1 ? -1 : std::acos(c0) * kRadToDeg;
+  return cosToDegrees(tetMaxDihedralCos(a, b, c, d));
 }
 
 namespace {

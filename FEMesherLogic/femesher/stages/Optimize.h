@@ -253,6 +253,8 @@ double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d
 /// The cosine of that angle (largest cosine of a dihedral angle; no acos, for comparisons); 2 when
 /// the tet is not positively oriented (or flat).
 double tetMaxDihedralCos(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
+/// tetMinDihedral from tetMaxDihedralCos's value (monotone: a larger cosine is never a larger angle).
+double cosToDegrees(double maxCos);
 
 /// Improves the mesh in place. `tets` must be positively oriented; `labels` holds one material
 /// per tet. Tets removed by peeling are erased and points no tet uses any more are dropped

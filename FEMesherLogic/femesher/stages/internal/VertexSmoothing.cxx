@@ -67,13 +67,21 @@ Vec3 shortestInHull(const std::vector<Vec3>& g) {
 bool smoothVertex(Editor& m, int32_t v, const MoveConstraint* constraint) {
   const auto& star = m.around[size_t(v)];
   if (star.empty()) return false;
-  auto starMin = [&](int64_t* worst) {
-    double q = 1e300;
+  // The star's worst angle (and its first tet in star order). acos is monotone, so the angle is
+  // taken only of a tet whose cosine is a new largest: the same result as the angle of every tet
+  // at a fraction of the cost. With `floor`, it stops at the first tet not above it (returning
+  // that tet's angle): the caller rejects such a position whatever the rest of the star holds.
+  auto starMin = [&](int64_t* worst, double floor = -1e300) {
+    double q = 1e300, cMax = -2;
     for (uint32_t t : star) {
-      const double x = m.quality(t);
+      const double c = m.qualityCos(m.tets[t]);
+      if (!(c > cMax)) continue;
+      cMax = c;
+      const double x = cosToDegrees(c);
       if (x < q) {
         q = x;
         if (worst) *worst = int64_t(t);
+        if (q <= floor) break;
       }
     }
     return q;
@@ -109,10 +117,15 @@ bool smoothVertex(Editor& m, int32_t v, const MoveConstraint* constraint) {
       p = keep;
       return false;
     }
-    const double q = starMin(nullptr);
-    if (q > q0 + kEps && (!constraint || !constraint->accept || constraint->accept())) {
-      q0 = starMin(&worst);
-      return true;
+    // The last worst tet first: where it does not rise, the position is rejected at once.
+    int64_t w = worst;
+    if (m.quality(uint32_t(w)) > q0 + kEps) {
+      const double q = starMin(&w, q0 + kEps);
+      if (q > q0 + kEps && (!constraint || !constraint->accept || constraint->accept())) {
+        q0 = q;
+        worst = w;
+        return true;
+      }
     }
     p = keep;
     return false;
