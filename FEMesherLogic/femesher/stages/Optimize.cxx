@@ -390,8 +390,15 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
              const OptimizeInterfaces& interfaces, RunContext& ctx, OptimizeResult& r) {
   Editor m(points, tets, labels);
   std::vector<uint32_t> queue, fresh;
+  // quality(t) < target, with the acos taken only near the target: a cosine clearly below the
+  // target's is an angle clearly above it (the margin dwarfs acos's rounding).
+  const double cosTarget = std::cos(params.targetMinDihedral / kRadToDeg);
+  auto bad = [&](uint32_t t) {
+    const double c = m.qualityCos(m.tets[t]);
+    return !(c < cosTarget - 1e-9) && cosToDegrees(c) < params.targetMinDihedral;
+  };
   for (uint32_t t = 0; t < tets.size(); ++t)
-    if (m.quality(t) < params.targetMinDihedral) queue.push_back(t);
+    if (bad(t)) queue.push_back(t);
   // Rounds: up to `passes` regular ones (until nothing changes), then, with insertVertices,
   // kInsertingRounds times a round that may also insert vertices (and split edges) over every tet
   // still below the target followed by a regular one over what it changed. Insertion comes last
@@ -408,7 +415,7 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
   auto everyBadTet = [&] {
     queue.clear();
     for (uint32_t t = 0; t < tets.size(); ++t)
-      if (m.alive[t] && m.quality(t) < params.targetMinDihedral) queue.push_back(t);
+      if (m.alive[t] && bad(t)) queue.push_back(t);
   };
   // `regular` regular rounds (until nothing changes), then `insertingRounds` times an inserting
   // round and a final one, over `queue`.
@@ -431,7 +438,7 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
           ctx.progress(
               std::min(1.0, (double(pass) + double(done) / double(order.size())) / totalRounds));
         }
-        if (!m.alive[t] || m.quality(t) >= params.targetMinDihedral) continue;
+        if (!m.alive[t] || !bad(t)) continue;
         fresh.clear();
         bool changed = false;
         // Peeling costs volume: a tet at or above the warning angle tries the flips first.
@@ -519,7 +526,7 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
           }
         if (changed) ++changes;
         for (uint32_t s : fresh)
-          if (m.alive[s] && m.quality(s) < params.targetMinDihedral) queue.push_back(s);
+          if (m.alive[s] && bad(s)) queue.push_back(s);
       }
       ctx.checkCancel();
       std::sort(queue.begin(), queue.end());
@@ -592,13 +599,20 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
   auto survey = [&](size_t& below, size_t& below5, double& mn) {
     below = below5 = 0;
     mn = tets.empty() ? 0 : 1e300;
+    // Angles only of the tets near a threshold and of the worst (acos is monotone).
+    const double cosTarget = std::cos(params.targetMinDihedral / kRadToDeg) - 1e-9,
+                 cos5 = std::cos(5 / kRadToDeg) - 1e-9;
+    double cMax = -1;
     for (const auto& T : tets) {
-      const double q = std::max(0.0, tetMinDihedral(points[size_t(T[0])], points[size_t(T[1])],
-                                                    points[size_t(T[2])], points[size_t(T[3])]));
-      mn = std::min(mn, q);
+      const double c = tetMaxDihedralCos(points[size_t(T[0])], points[size_t(T[1])],
+                                         points[size_t(T[2])], points[size_t(T[3])]);
+      cMax = std::max(cMax, c);
+      if (c < cosTarget && c < cos5) continue;
+      const double q = std::max(0.0, cosToDegrees(c));
       below += q < params.targetMinDihedral;
       below5 += q < 5;
     }
+    if (!tets.empty()) mn = std::max(0.0, cosToDegrees(cMax));
   };
   survey(r.tetsBelowTargetBefore, r.tetsBelow5Before, r.minDihedralBefore);
   const bool coarsen = params.coarsenMinDihedral > 0 && params.sizeAt;

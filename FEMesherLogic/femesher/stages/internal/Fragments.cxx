@@ -185,64 +185,78 @@ void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 
                      double target, OptimizeResult& r) {
   const size_t n = tets.size();
   if (n == 0) return;
-  // Union-find over tets sharing a face (faces matched by sorting their vertex triples).
+  // Union-find over tets sharing a face; each piece's root is its first tet. A face's other tets
+  // are found among the tets of its first vertex (vertex -> tets in compressed rows): no sort of
+  // the 4 n faces.
   std::vector<uint32_t> parent(n);
   std::iota(parent.begin(), parent.end(), 0u);
   auto find = [&](uint32_t x) {
     while (parent[x] != x) x = parent[x] = parent[parent[x]];
     return x;
   };
-  std::vector<std::pair<std::array<int32_t, 3>, uint32_t>> faces;
-  faces.reserve(4 * n);
+  std::vector<uint32_t> first(points.size() + 1, 0), incident(4 * n);
+  for (const auto& T : tets)
+    for (int32_t v : T) ++first[size_t(v) + 1];
+  for (size_t v = 0; v < points.size(); ++v) first[v + 1] += first[v];
+  {
+    std::vector<uint32_t> fill(first.begin(), first.end() - 1);
+    for (uint32_t t = 0; t < n; ++t)
+      for (int32_t v : tets[t]) incident[fill[size_t(v)]++] = t;
+  }
+  auto holds = [&](uint32_t s, int32_t v) {
+    const auto& S = tets[s];
+    return S[0] == v || S[1] == v || S[2] == v || S[3] == v;
+  };
   for (uint32_t t = 0; t < n; ++t)
     for (int k = 0; k < 4; ++k) {
-      std::array<int32_t, 3> f;
-      int c = 0;
-      for (int i = 0; i < 4; ++i)
-        if (i != k) f[size_t(c++)] = tets[t][size_t(i)];
-      std::sort(f.begin(), f.end());
-      faces.push_back({f, t});
+      const auto& T = tets[t];
+      const int32_t a = T[size_t((k + 1) % 4)], b = T[size_t((k + 2) % 4)], c = T[size_t((k + 3) % 4)];
+      for (uint32_t i = first[size_t(a)]; i < first[size_t(a) + 1]; ++i) {
+        const uint32_t s = incident[i];
+        if (s <= t || !holds(s, b) || !holds(s, c)) continue;
+        const uint32_t x = find(t), y = find(s);
+        if (x != y) parent[std::max(x, y)] = std::min(x, y);
+      }
     }
-  std::sort(faces.begin(), faces.end());
-  for (size_t i = 1; i < faces.size(); ++i)
-    if (faces[i].first == faces[i - 1].first) {
-      const uint32_t a = find(faces[i].second), b = find(faces[i - 1].second);
-      if (a != b) parent[a] = b;
-    }
-  std::vector<double> volume(n, 0), worst(n, 180);
+  std::vector<double> volume(n, 0), worstCos(n, -1);
   std::vector<size_t> perLabel;
   for (uint32_t t = 0; t < n; ++t) {
     const auto& T = tets[t];
     const Vec3 &A = points[size_t(T[0])], &B = points[size_t(T[1])], &C = points[size_t(T[2])],
                &D = points[size_t(T[3])];
     volume[find(t)] += std::fabs(dot(cross(sub(B, A), sub(C, A)), sub(D, A))) / 6;
-    worst[find(t)] = std::min(worst[find(t)], tetMinDihedral(A, B, C, D));
+    worstCos[find(t)] = std::max(worstCos[find(t)], tetMaxDihedralCos(A, B, C, D));
     if (size_t(labels[t]) >= perLabel.size()) perLabel.resize(size_t(labels[t]) + 1, 0);
     ++perLabel[size_t(labels[t])];
   }
   // Lightest pieces first, so that a material keeps its largest piece when all are light.
   auto light = [&](uint32_t root) {
-    return volume[root] < minVolume || (volume[root] < badMinVolume && worst[root] < target);
+    return volume[root] < minVolume ||
+           (volume[root] < badMinVolume && cosToDegrees(worstCos[root]) < target);
   };
   std::vector<uint32_t> roots;
   for (uint32_t t = 0; t < n; ++t)
     if (find(t) == t && light(t)) roots.push_back(t);
   std::sort(roots.begin(), roots.end(),
             [&](uint32_t a, uint32_t b) { return volume[a] != volume[b] ? volume[a] < volume[b] : a < b; });
-  std::vector<std::vector<uint32_t>> members(n);
-  for (uint32_t t = 0; t < n; ++t)
-    if (light(find(t))) members[find(t)].push_back(t);
+  std::vector<uint32_t> slot(roots.empty() ? 0 : n, 0);  // root -> 1 + its place in `roots`
+  for (size_t i = 0; i < roots.size(); ++i) slot[roots[i]] = uint32_t(i + 1);
+  std::vector<std::vector<uint32_t>> members(roots.size());
+  for (uint32_t t = 0; t < n && !roots.empty(); ++t)
+    if (const uint32_t i = slot[find(t)]) members[i - 1].push_back(t);
   std::vector<char> drop(n, 0);
-  for (uint32_t root : roots) {
+  for (size_t i = 0; i < roots.size(); ++i) {
+    const uint32_t root = roots[i];
+    const auto& piece = members[i];
     std::vector<size_t> take(perLabel.size(), 0);
-    for (uint32_t t : members[root]) ++take[size_t(labels[t])];
+    for (uint32_t t : piece) ++take[size_t(labels[t])];
     bool last = false;
     for (size_t l = 0; l < take.size(); ++l) last |= take[l] > 0 && take[l] >= perLabel[l];
     if (last) continue;
     for (size_t l = 0; l < take.size(); ++l) perLabel[l] -= take[l];
-    for (uint32_t t : members[root]) drop[t] = 1;
+    for (uint32_t t : piece) drop[t] = 1;
     ++r.fragments;
-    r.fragmentTets += members[root].size();
+    r.fragmentTets += piece.size();
     r.fragmentVolume += volume[root];
   }
   if (r.fragmentTets > 0) eraseTets(points, tets, labels, drop);
