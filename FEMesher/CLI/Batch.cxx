@@ -427,7 +427,7 @@ void estimateCases(std::vector<Case>& cases, const std::vector<size_t>& todo, in
 }
 
 uintmax_t peakFor(const Case& c, int threads) {
-  return uintmax_t(1 + std::min<size_t>(size_t(threads), c.materials)) * c.perProcessBytes;
+  return treePeakBytes(c.perProcessBytes, std::min<size_t>(size_t(threads), c.materials));
 }
 
 Status writeRecord(const Case& c) {
@@ -452,8 +452,7 @@ Status writeRecord(const Case& c) {
 }  // namespace
 
 std::string memoryEstimateJson(const std::string& input, const MemoryEstimate& e, int threads) {
-  const size_t children = std::min<size_t>(size_t(std::max(1, threads)), e.materials);
-  const uintmax_t perProcess = e.peakBytes / (1 + children);
+  const uintmax_t perProcess = e.mainBytes;  // the main process's: the tree's at other thread counts
   const double requestMb = std::ceil(double(e.peakBytes) * kMemoryEstimateFactor / 1e6);
   return json({{"input", input},
                {"threads", threads},

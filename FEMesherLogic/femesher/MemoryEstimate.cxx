@@ -17,13 +17,16 @@ namespace femesher {
 namespace {
 
 // Calibration (clinical_size.py, default parameters, 2 threads; README *Memory*): the process
-// tree's peak is in VolumeMesh, where `k` TetGen children (one per material at a time, at most
-// one per thread) each start as a copy of the main process: peak = (1 + k) x (kBase +
+// tree's peak is in VolumeMesh, where `k` TetGen helpers (one per material at a time, at most one
+// per thread) run beside the main process: peak = (1 + kTetgenWorkerShare x k) x (kBase +
 // kPerGridMaterialVoxel x grid voxels x materials + kPerInterfaceFace x interface faces x
-// (3 / edge length in voxels)^2). A least-squares fit of the relative error on the femur
-// phantom, the knee, colin27 and the hip phantom at scale 0.5 and 1 (96 MB, 1.65 GB, 4.01 GB,
-// 1.70 GB, 9.32 GB measured; estimates 0.89 to 1.09 of them). colin27 upsampled 2x, measured
-// after the fit: 0.91 of 17.8 GB.
+// (3 / edge length in voxels)^2). The main process's terms: a least-squares fit of the relative
+// error on the femur phantom, the knee, colin27 and the hip phantom at scale 0.5 and 1 when the
+// TetGen jobs were forked children (each counting the main process's pages: peak = 3 x main at
+// 2 threads; measured 96 MB, 1.65 GB, 4.01 GB, 1.70 GB, 9.32 GB, estimates 0.89 to 1.09 of them).
+// The helpers' share, 0.4: measured with them (2026-11-28) 68 MB, 837 MB, 2.67 GB and 1.01 GB for
+// the phantom, the knee, colin27 and the hip at scale 0.5, estimates 0.85, 1.29, 0.87 and 1.05 of
+// them (the helpers' own share of the main process: 0.56, 0.20, 0.53, 0.36).
 constexpr double kBase = 12.7e6;
 constexpr double kPerGridMaterialVoxel = 1.42;
 constexpr double kPerInterfaceFace = 907.0;
@@ -136,9 +139,9 @@ MemoryEstimate estimateRunMemory(const LabelVolume& v, const MeshingParameters& 
                                 : params.sizing.edgeLengthFactor;
   const double density = std::pow(3.0 / std::max(0.5, edgeVoxels), 2);
   const size_t children = std::min<size_t>(size_t(resolveThreads(params.run.threads)), e.materials);
-  e.peakBytes = uintmax_t(double(1 + children) *
-                          (kBase + kPerGridMaterialVoxel * double(e.gridVoxels) * double(e.materials) +
-                           kPerInterfaceFace * double(faces) * density));
+  e.mainBytes = uintmax_t(kBase + kPerGridMaterialVoxel * double(e.gridVoxels) * double(e.materials) +
+                          kPerInterfaceFace * double(faces) * density);
+  e.peakBytes = treePeakBytes(e.mainBytes, children);
   e.seconds = (kSecondsBase + kSecondsPerGridVoxel * double(e.gridVoxels) +
                kSecondsPerInterfaceFace * double(faces) * density) *
               std::pow(2.0 / double(resolveThreads(params.run.threads)), 0.6);

@@ -10,10 +10,13 @@
 #include <femesher/stages/IndicatorFunctions.h>
 #include <femesher/stages/LabelPreprocess.h>
 #include <femesher/stages/VolumeMesh.h>
+#include <femesher/stages/internal/TetgenJobs.h>
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <map>
 #include <set>
 #include <string>
@@ -371,4 +374,38 @@ TEST(VolumeMesh, LocalDelaunaySurfaceIsMeshedPerMaterialWithoutCarvingItAway) {
     std::printf("[volume-mesh] %s, local Delaunay surface: %zu tets, worst %.2f deg\n", name.c_str(),
                 r->mesh.tets.size(), worst);
   }
+}
+
+// Each TetGen job runs in the helper `femesher-tetgen-worker` (a fresh process holding only its
+// problem; a fork of the run would map all of the run's memory: the knee's process tree peaked at
+// 1,646 MB with forks, 879 MB with the helper). The build tree has the helper (a missing one would
+// silently fall back to forking), and its meshes are exactly the forked children's.
+TEST(VolumeMesh, TetgenJobsRunInTheHelperProcessAndMatchTheForkedChildren) {
+  const std::string worker = volume_detail::tetgenWorkerPath();
+  ASSERT_FALSE(worker.empty()) << "femesher-tetgen-worker not found beside the library";
+  const LabelVolume v = test::ballsWithCavities();
+  MeshingParameters p;
+  p.run.threads = 2;
+  p.run.computeFidelity = false;
+  RunContext c1, c2, c3;
+  auto helper = runPipeline(v, p, c1);
+  ::setenv("FEMESHER_TETGEN_WORKER", "", 1);  // empty: no helper, the jobs fork
+  EXPECT_TRUE(volume_detail::tetgenWorkerPath().empty());
+  auto forked = runPipeline(v, p, c2);
+  // A helper that leaves without a result: the stage says so and falls back (here to the whole
+  // surface at once, then to the labelled Delaunay tets), it does not hang or crash.
+  ::setenv("FEMESHER_TETGEN_WORKER", "/bin/false", 1);
+  auto broken = runPipeline(v, p, c3);
+  ::unsetenv("FEMESHER_TETGEN_WORKER");
+  ASSERT_TRUE(helper.isOk()) << helper.status().message();
+  ASSERT_TRUE(forked.isOk()) << forked.status().message();
+  EXPECT_EQ(helper->mesh.points, forked->mesh.points);
+  EXPECT_EQ(helper->mesh.tets, forked->mesh.tets);
+  EXPECT_EQ(helper->mesh.tetLabels, forked->mesh.tetLabels);
+  ASSERT_TRUE(broken.isOk()) << broken.status().message();
+  EXPECT_NE(broken->reportJson.find("exited with code 1"), std::string::npos);
+  // By hand it explains itself and refuses (exit 2): without arguments, and with a problem that
+  // is not one (empty standard input; the shell is its parent, whose pid it is given).
+  EXPECT_EQ(WEXITSTATUS(std::system((worker + " 2>/dev/null").c_str())), 2);
+  EXPECT_EQ(WEXITSTATUS(std::system(("sh -c '" + worker + " pQ $$ </dev/null 2>/dev/null; exit $?'").c_str())), 2);
 }
