@@ -379,6 +379,21 @@ double tetMaxDihedralCos(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3
 
 double cosToDegrees(double maxCos) { return maxCos > 1 ? -1 : std::acos(maxCos) * kRadToDeg; }
 
+namespace {
+
+/// "Smallest dihedral angle below `degrees`" decided from tetMaxDihedralCos's value, with the
+/// acos taken only near the threshold: a cosine clearly below the threshold's is an angle clearly
+/// above it (the margin dwarfs acos's rounding). A flat or inverted tet counts as 0 degrees.
+struct BelowAngle {
+  double degrees, clearCos;
+  explicit BelowAngle(double d) : degrees(d), clearCos(std::cos(d / kRadToDeg) - 1e-9) {}
+  bool operator()(double c) const {
+    return !(c < clearCos) && std::max(0.0, cosToDegrees(c)) < degrees;
+  }
+};
+
+}  // namespace
+
 double tetMinDihedral(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
   return cosToDegrees(tetMaxDihedralCos(a, b, c, d));
 }
@@ -390,13 +405,8 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
              const OptimizeInterfaces& interfaces, RunContext& ctx, OptimizeResult& r) {
   Editor m(points, tets, labels);
   std::vector<uint32_t> queue, fresh;
-  // quality(t) < target, with the acos taken only near the target: a cosine clearly below the
-  // target's is an angle clearly above it (the margin dwarfs acos's rounding).
-  const double cosTarget = std::cos(params.targetMinDihedral / kRadToDeg);
-  auto bad = [&](uint32_t t) {
-    const double c = m.qualityCos(m.tets[t]);
-    return !(c < cosTarget - 1e-9) && cosToDegrees(c) < params.targetMinDihedral;
-  };
+  const BelowAngle belowTarget(params.targetMinDihedral);
+  auto bad = [&](uint32_t t) { return belowTarget(m.qualityCos(m.tets[t])); };
   for (uint32_t t = 0; t < tets.size(); ++t)
     if (bad(t)) queue.push_back(t);
   // Rounds: up to `passes` regular ones (until nothing changes), then, with insertVertices,
@@ -599,18 +609,15 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
   auto survey = [&](size_t& below, size_t& below5, double& mn) {
     below = below5 = 0;
     mn = tets.empty() ? 0 : 1e300;
-    // Angles only of the tets near a threshold and of the worst (acos is monotone).
-    const double cosTarget = std::cos(params.targetMinDihedral / kRadToDeg) - 1e-9,
-                 cos5 = std::cos(5 / kRadToDeg) - 1e-9;
+    // The worst angle from the largest cosine (acos is monotone).
+    const BelowAngle belowTarget(params.targetMinDihedral), below5Degrees(5);
     double cMax = -1;
     for (const auto& T : tets) {
       const double c = tetMaxDihedralCos(points[size_t(T[0])], points[size_t(T[1])],
                                          points[size_t(T[2])], points[size_t(T[3])]);
       cMax = std::max(cMax, c);
-      if (c < cosTarget && c < cos5) continue;
-      const double q = std::max(0.0, cosToDegrees(c));
-      below += q < params.targetMinDihedral;
-      below5 += q < 5;
+      below += belowTarget(c);
+      below5 += below5Degrees(c);
     }
     if (!tets.empty()) mn = std::max(0.0, cosToDegrees(cMax));
   };

@@ -9,9 +9,6 @@
 #include <signal.h>
 #include <spawn.h>
 #include <sys/mman.h>
-#ifdef __linux__
-#include <sys/prctl.h>
-#endif
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -26,17 +23,6 @@ namespace femesher {
 namespace volume_detail {
 
 namespace {
-
-/// Child side, right after fork(): a worker must not outlive the run that forked it (a parent
-/// killed by SIGKILL cannot kill its workers). Linux: SIGKILL when the forking thread ends
-/// (PR_SET_PDEATHSIG), then, as the parent may have died before that was set, leave at once if
-/// it already has (the child was reparented).
-void dieWithParent(pid_t parent) {
-#ifdef __linux__
-  ::prctl(PR_SET_PDEATHSIG, SIGKILL);
-#endif
-  if (::getppid() != parent) ::_exit(4);
-}
 
 /// Child side (fork): mesh, stream the result through `fd`, leave without running any exit
 /// handler.

@@ -101,6 +101,13 @@ bool readInput(const std::vector<char>& b, TetgenInput& in) {
 }
 
 /// The result of one job as a worker streams it: status, then the arrays or the error text.
+void dieWithParent(pid_t parent) {
+#ifdef __linux__
+  ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+#endif
+  if (::getppid() != parent) ::_exit(4);
+}
+
 bool writeResult(int fd, bool ok, const TetgenOutput& r, const std::string& err) {
   const int32_t status = ok ? 0 : 1;
   bool w = writeAll(fd, &status, sizeof status);
@@ -186,11 +193,7 @@ int tetgenWorkerMain(int argc, char** argv) {
                  "by hand.\n");
     return 2;
   }
-#ifdef __linux__
-  // Not beyond the run that started it (see dieWithParent).
-  ::prctl(PR_SET_PDEATHSIG, SIGKILL);
-#endif
-  if (::getppid() != pid_t(std::strtol(argv[2], nullptr, 10))) return 4;
+  dieWithParent(pid_t(std::strtol(argv[2], nullptr, 10)));
   TetgenInput in;
   {
     std::vector<char> bytes;

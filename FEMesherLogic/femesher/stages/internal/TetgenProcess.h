@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <sys/types.h>
 #include <vector>
 
 namespace femesher {
@@ -46,6 +47,11 @@ bool readAll(int fd, std::vector<char>& out);
 bool writeInput(int fd, const TetgenInput& in);
 /// Reads writeInput's bytes; false when they are cut short or inconsistent.
 bool readInput(const std::vector<char>& bytes, TetgenInput& in);
+/// A TetGen process (the helper, or a forked child right after fork()) must not outlive the run
+/// that started it (a run killed by SIGKILL cannot kill it). Linux: SIGKILL when the starting
+/// thread ends (PR_SET_PDEATHSIG), then, as the run may have died before that was set, leave at
+/// once (exit 4) if it already has (the process was reparented).
+void dieWithParent(pid_t parent);
 /// The result of one job as the helper (or a forked child) streams it: status, then the arrays
 /// or the error text.
 bool writeResult(int fd, bool ok, const TetgenOutput& r, const std::string& err);
