@@ -24,6 +24,7 @@ after (other work on the machine distorts timings: run it alone).
 
 Timings are printed, never asserted."""
 import argparse
+import ctypes
 import gzip
 import json
 import os
@@ -115,6 +116,17 @@ def input_for(name):
     return path, int(np.prod(dims)), dims
 
 
+# A child between posix_spawn's clone(CLONE_VM | CLONE_VFORK) and its exec shares the parent's
+# memory (one address space, not copies): its VmRSS is the parent's and must not count again.
+# kcmp(KCMP_VM) says whether two processes share it (x86_64 / aarch64 syscall numbers).
+_SYS_KCMP = {"x86_64": 312, "aarch64": 272}.get(os.uname().machine)
+_LIBC = ctypes.CDLL(None, use_errno=True)
+
+
+def same_memory(a, b):
+    return _SYS_KCMP is not None and _LIBC.syscall(_SYS_KCMP, a, b, 0, 0, 0) == 0  # KCMP_VM = 0
+
+
 def descendants(pid):
     todo, seen = [pid], []
     while todo:
@@ -141,7 +153,7 @@ def sample(pid):
             # fields after the name: state(0) ... utime(11) stime(12) cutime(13) cstime(14) rss(21)
             cpu += sum(int(x) for x in st[11:15]) / TICK
             r = int(st[21]) * PAGE
-            rss += r
+            rss += r if p == pid or not same_memory(pid, p) else 0
             if p == pid:
                 main_rss = r
                 with open("/proc/%d/status" % p) as f:
