@@ -50,7 +50,9 @@ bool qFEMesherRunner::start(std::shared_ptr<const femesher::LabelVolume> volume,
   auto box = box_;
   ctx_->setProgressCallback([box](const std::string& stage, double f, double total) {
     std::lock_guard<std::mutex> lock(box->mutex);
-    box->stage = QString::fromStdString(stage);
+    QString name = QString::fromStdString(stage);
+    if (name != box->stage) box->entered.push_back({name, f, total});
+    box->stage = std::move(name);
     box->stageFraction = f;
     box->total = total;
     box->progressDirty = true;
@@ -121,9 +123,11 @@ void qFEMesherRunner::poll() {
   double f = 0, total = 0;
   bool dirty = false;
   std::vector<std::pair<int, QString>> logs;
+  std::vector<Mailbox::Progress> entered;
   std::shared_ptr<const femesher::PreviewSnapshot> preview;
   {
     std::lock_guard<std::mutex> lock(box_->mutex);
+    entered.swap(box_->entered);
     dirty = box_->progressDirty;
     box_->progressDirty = false;
     stage = box_->stage;
@@ -133,6 +137,9 @@ void qFEMesherRunner::poll() {
     preview.swap(box_->preview);
   }
   for (const auto& [level, msg] : logs) emit logMessage(level, msg);
+  // Stages begun and left since the last tick, then where the run is now.
+  for (const auto& e : entered)
+    if (e.stage != stage) emit progressChanged(e.stage, e.stageFraction, e.total);
   if (dirty) emit progressChanged(stage, f, total);
   if (preview) emit previewAvailable(preview);
 }

@@ -7,7 +7,8 @@
 /// preview snapshot into a mutex-protected mailbox; a GUI-thread timer (every `pollInterval`
 /// ms) empties it and emits the signals below. So a flood of progress callbacks or previews
 /// costs the GUI at most one update per tick (natural throttling), and every signal is emitted
-/// on the GUI thread. `cancel()` calls `RunContext::cancel()`; the pipeline checks the token in
+/// on the GUI thread. Only progress within a stage is coalesced: every stage the run enters is
+/// forwarded (its first report, then the latest), however short the stage or late the tick. `cancel()` calls `RunContext::cancel()`; the pipeline checks the token in
 /// its loops and ends with a Canceled status.
 
 #include <femesher/Parameters.h>
@@ -74,6 +75,11 @@ class qFEMesherRunner : public QObject {
     QString stage;
     double stageFraction = 0, total = 0;
     bool progressDirty = false;
+    struct Progress {
+      QString stage;
+      double stageFraction, total;
+    };
+    std::vector<Progress> entered;  ///< first report of each stage begun since the last tick
     std::vector<std::pair<int, QString>> logs;
     std::shared_ptr<const femesher::PreviewSnapshot> preview;
     // outcome

@@ -214,16 +214,22 @@ class PanelWidgetTest : public QObject {
   void cancelMidRun() {
     // A long run: fine elements and many particle iterations.
     QVERIFY(panel_->applyPreset(QStringLiteral("fine")));
-    spin("particle_iterations")->setValue(400);
+    // A run that outlasts a slow GUI tick by far: the phantom's fine run takes 1.3 s, 0.1 s of it
+    // the particle system; a bound on the tet volume makes the stages after it take ~15 s (the
+    // cancel stops them; the next test's applyPreset lifts the bound).
+    spin("max_tet_volume")->setValue(0.05);
     QSignalSpy progress(panel_.get(), &qFEMesherPanelWidget::progressChanged);
     QSignalSpy ended(panel_.get(), &qFEMesherPanelWidget::runEnded);
     QVERIFY(panel_->run());
     QCOMPARE(panel_->runState(), QStringLiteral("running"));
     QVERIFY(!panel_->runButton()->isEnabled());
     QVERIFY(panel_->cancelButton()->isEnabled());
-    // Wait until the particle system runs (the GUI keeps processing events meanwhile).
-    QTRY_VERIFY_WITH_TIMEOUT(reached(progress, QStringLiteral("ParticleSystem")), 120000);
-    QVERIFY(panel_->isRunning());
+    // Wait until the particle system runs (the GUI keeps processing events meanwhile). Every
+    // stage the run enters is forwarded, so the wait ends at the particle system or, should the
+    // run end first, at once (a QTRY that cannot succeed waits three times its timeout).
+    QTRY_VERIFY_WITH_TIMEOUT(
+        reached(progress, QStringLiteral("ParticleSystem")) || !panel_->isRunning(), 120000);
+    QVERIFY2(panel_->isRunning(), "the run ended before it could be canceled");
     QVERIFY(panel_->progressBar()->format().contains(
         qFEMesherPanelWidget::stageTitle(QStringLiteral("ParticleSystem"))));
     panel_->cancel();
@@ -251,11 +257,20 @@ class PanelWidgetTest : public QObject {
     QVERIFY(waitForEnd(300000));
     QCOMPARE(panel_->runState(), QStringLiteral("succeeded"));
     QCOMPARE(succeeded.count(), 1);
-    // Every stage the run reported (the runner forwards the latest per GUI tick, so fast stages
-    // may be skipped) is in the stage table and has a name in words in the progress bar.
+    // Every stage the run went through reached the GUI, in run order (the runner coalesces the
+    // progress within a stage, never a stage), is in the stage table and has a name in words in
+    // the progress bar.
     QSet<QString> stages;
-    for (const auto& args : progress) stages.insert(args.at(0).toString());
+    QStringList order;
+    for (const auto& args : progress) {
+      const QString stage = args.at(0).toString();
+      stages.insert(stage);
+      if (order.isEmpty() || order.back() != stage) order.push_back(stage);
+    }
     QVERIFY(!stages.isEmpty());
+    QStringList ran;
+    for (const auto& t : panel_->result()->timings) ran.push_back(QString::fromStdString(t.name));
+    QCOMPARE(order, ran);
     for (const QString& stage : stages) {
       QVERIFY2(findStage(stage.toStdString()), qPrintable(stage));
       const QString title = qFEMesherPanelWidget::stageTitle(stage);
@@ -437,14 +452,19 @@ class PanelWidgetTest : public QObject {
     const QString before = tmpFile(QStringLiteral("first.mesh"));
     QVERIFY2(panel_->exportMesh(before), qPrintable(panel_->lastError()));
     QVERIFY(panel_->applyPreset(QStringLiteral("fine")));
-    spin("particle_iterations")->setValue(400);
+    // A run that outlasts a slow GUI tick by far: the phantom's fine run takes 1.3 s, 0.1 s of it
+    // the particle system; a bound on the tet volume makes the stages after it take ~15 s (the
+    // cancel stops them; the next test's applyPreset lifts the bound).
+    spin("max_tet_volume")->setValue(0.05);
     QSignalSpy progress(panel_.get(), &qFEMesherPanelWidget::progressChanged);
     QSignalSpy ended(panel_.get(), &qFEMesherPanelWidget::runEnded);
     QVERIFY(panel_->run());
     QCOMPARE(panel_->result().get(), first.get());
     for (const QString& ext : panel_->exportExtensions())
       QVERIFY2(panel_->exportButton(ext)->isEnabled(), qPrintable(ext));
-    QTRY_VERIFY_WITH_TIMEOUT(reached(progress, QStringLiteral("ParticleSystem")), 120000);
+    QTRY_VERIFY_WITH_TIMEOUT(
+        reached(progress, QStringLiteral("ParticleSystem")) || !panel_->isRunning(), 120000);
+    QVERIFY2(panel_->isRunning(), "the run ended before it could be canceled");
     const QString during = tmpFile(QStringLiteral("during.mesh"));
     QVERIFY2(panel_->exportMesh(during), qPrintable(panel_->lastError()));
     panel_->cancel();
