@@ -444,10 +444,9 @@ int runSizing(const std::string& input, const std::string& output, const MeshOpt
       !s)
     return fail(s);
   computing.reset();  // a signal from here on stops the write before its rename
-  if (Status s = writeScalarVolume(geometry, field->h, output); !s) return fail(s);
-  const auto [mn, mx] = std::minmax_element(field->h.begin(), field->h.end());
+  if (Status s = writeScalarVolume(geometry, field->values(ctx.threads()), output); !s) return fail(s);
   std::fprintf(stderr, "wrote %s: target edge length %.3g .. %.3g mm (%zu medial voxels)\n",
-               output.c_str(), *mn, *mx, field->medialVoxels);
+               output.c_str(), field->lowest, field->highest, field->medialVoxels);
   return 0;
 }
 

@@ -20,16 +20,16 @@ namespace {
 // tree's peak is in VolumeMesh, where `k` TetGen helpers (one per material at a time, at most one
 // per thread) run beside the main process: peak = (1 + kTetgenWorkerShare x k) x (kBase +
 // kPerGridMaterialVoxel x grid voxels x materials + kPerInterfaceFace x interface faces x
-// (3 / edge length in voxels)^2). The main process's terms: a least-squares fit of the relative
-// error on the femur phantom, the knee, colin27 and the hip phantom at scale 0.5 and 1 when the
-// TetGen jobs were forked children (each counting the main process's pages: peak = 3 x main at
-// 2 threads; measured 96 MB, 1.65 GB, 4.01 GB, 1.70 GB, 9.32 GB, estimates 0.89 to 1.09 of them).
-// The helpers' share, 0.4: measured with them (2026-11-28) 68 MB, 837 MB, 2.67 GB and 1.01 GB for
-// the phantom, the knee, colin27 and the hip at scale 0.5, estimates 0.85, 1.29, 0.87 and 1.05 of
-// them (the helpers' own share of the main process: 0.56, 0.20, 0.53, 0.36).
-constexpr double kBase = 12.7e6;
-constexpr double kPerGridMaterialVoxel = 1.42;
-constexpr double kPerInterfaceFace = 907.0;
+// (3 / edge length in voxels)^2). Fitted (least squares of the relative error, 2026-11-28) to the
+// peaks measured with the helpers, the indicator functions and the sizing field in bricks
+// (BrickGrid.h) and the heap trimmed after every stage: 67 MB, 684 MB, 872 MB, 2.40 GB and
+// 3.83 GB for the femur phantom, the knee, the hip phantom at scale 0.5, colin27 and the hip
+// phantom at full size; estimates 0.99, 1.17, 0.98, 0.92 and 0.89 of them. The per-voxel term is
+// small now (the fields keep one value per brick beyond their band): the interfaces, through
+// the surface and the tets, set the peak. (The helpers' share, 0.4, was measured 2026-11-28.)
+constexpr double kBase = 18.8e6;
+constexpr double kPerGridMaterialVoxel = 0.1;
+constexpr double kPerInterfaceFace = 897.0;
 
 // Wall time, a rough model for schedulers (Slurm's --time): at 2 threads, seconds = kSecondsBase +
 // kSecondsPerGridVoxel x grid voxels + kSecondsPerInterfaceFace x interface faces x (3 / edge

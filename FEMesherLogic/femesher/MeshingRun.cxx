@@ -6,6 +6,9 @@
 #include <femesher/stages/InterfaceSmoothing.h>
 
 #include <algorithm>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -101,6 +104,12 @@ void MeshingRun::run(StageId id) {
     case StageId::Fidelity: fidelity(); break;
   }
   scope.done();
+#ifdef __GLIBC__
+  // What the stage freed goes back to the system, not only the top of the heap: the many small
+  // blocks of CGAL's triangulations otherwise stay resident through the stages after them (the
+  // TetGen helpers run beside them).
+  malloc_trim(0);
+#endif
 }
 
 void MeshingRun::preprocess() {
@@ -138,8 +147,13 @@ void MeshingRun::sizingField() {
   SizingParameters sp = params_.sizing;
   sp.threads = ctx_.threads();
   sp.targetEdgeLength = state_.edgeLength;  // the automatic bounds follow the run's edge length
-  auto field = std::make_shared<const SizingField>(
-      computeSizingField(workingLabels(), *state_.medialAxes, sp, ctx_, state_.field.get()));
+  SizingField computed =
+      computeSizingField(workingLabels(), *state_.medialAxes, sp, ctx_, state_.field.get());
+  const size_t denseBytes = computed.h.size() * sizeof(float);
+  computed.pack(ctx_.threads());  // the rest of the run reads it; constant far from interfaces
+  ctx_.debug("SizingField: " + std::to_string(computed.packed.bytes() >> 20) + " MB in bricks, " +
+             std::to_string(denseBytes >> 20) + " MB dense");
+  auto field = std::make_shared<const SizingField>(std::move(computed));
   workingLabels_.reset();
   state_.medialAxes.reset();
   state_.sizingField = field;
@@ -344,10 +358,9 @@ std::shared_ptr<const DeferredCurving> MeshingRun::keepForCurving() {
 ReportCounts MeshingRun::reportCounts() const {
   const MeshingState& s = state_;
   double sizeMin = s.edgeLength, sizeMax = s.edgeLength;
-  if (s.sizingField && !s.sizingField->h.empty()) {
-    const auto [mn, mx] = std::minmax_element(s.sizingField->h.begin(), s.sizingField->h.end());
-    sizeMin = *mn;
-    sizeMax = *mx;
+  if (s.sizingField && !s.sizingField->empty()) {
+    sizeMin = s.sizingField->lowest;
+    sizeMax = s.sizingField->highest;
   }
   ReportCounts c = {{"target_edge_length_mm", s.edgeLength},
                     {"sizing_min_mm", sizeMin},

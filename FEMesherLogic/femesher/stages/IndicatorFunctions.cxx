@@ -281,25 +281,13 @@ float IndicatorField::valueRaw(int m, int i, int j, int k) const {
     if (m == 0 && (i < 0 || j < 0 || k < 0 || i >= d[0] || j >= d[1] || k >= d[2])) return -far_;
     return far_;
   }
-  return b.f[size_t(x) + size_t(b.dims[0]) * (size_t(y) + size_t(b.dims[1]) * size_t(z))];
+  return b.f.at(x, y, z);
 }
 
 void IndicatorField::corners(int m, int i, int j, int k, double out[8]) const {
   const Box& b = boxes_[m];
   const int x = i - b.lo[0], y = j - b.lo[1], z = k - b.lo[2];
-  if (x >= 0 && y >= 0 && z >= 0 && x + 1 < b.dims[0] && y + 1 < b.dims[1] && z + 1 < b.dims[2]) {
-    const size_t sy = size_t(b.dims[0]), sz = size_t(b.dims[0]) * size_t(b.dims[1]);
-    const float* p = &b.f[size_t(x) + sy * size_t(y) + sz * size_t(z)];
-    out[0] = p[0];
-    out[1] = p[1];
-    out[2] = p[sy];
-    out[3] = p[sy + 1];
-    out[4] = p[sz];
-    out[5] = p[sz + 1];
-    out[6] = p[sz + sy];
-    out[7] = p[sz + sy + 1];
-    return;
-  }
+  if (b.f.cell(x, y, z, out)) return;  // the cell lies in the box and in one brick
   for (int c = 0; c < 8; ++c) out[c] = valueRaw(m, i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
 }
 
@@ -534,25 +522,29 @@ IndicatorField computeIndicatorFunctions(const PreprocessedVolume& vol,
     ctx.checkCancel();
     squaredEdt(dIn, b.dims, vol.spacing, threads);
     ctx.checkCancel();
-    b.f.resize(n);
+    std::vector<float> f(n);
     forEachVoxel(n, threads, [&](size_t p) {
       const float v = inside[p] ? std::sqrt(dIn[p]) - offset : offset - std::sqrt(dOut[p]);
-      b.f[p] = std::clamp(v, -bandMm, bandMm);
+      f[p] = std::clamp(v, -bandMm, bandMm);
     });
     std::vector<float>().swap(dIn);
     std::vector<float>().swap(dOut);
     // Small labels are smoothed less (sigma <= a quarter of their smallest extent), so a label of
     // a few voxels keeps its volume instead of shrinking to blobs around its voxel centres.
     const int extent = std::min({hi[m][0] - lo[m][0], hi[m][1] - lo[m][1], hi[m][2] - lo[m][2]}) + 1;
-    gaussianBlur(b.f, b.dims, std::min(params.sigma, 0.25 * extent), threads);
+    gaussianBlur(f, b.dims, std::min(params.sigma, 0.25 * extent), threads);
     forEachVoxel(n, threads,
-                 [&](size_t p) { b.f[p] = inside[p] ? std::max(b.f[p], eps) : std::min(b.f[p], -eps); });
+                 [&](size_t p) { f[p] = inside[p] ? std::max(f[p], eps) : std::min(f[p], -eps); });
     if (params.volumeIterations > 0)
-      preserveVolume(b.f, inside, b.dims, vol.spacing, eps, params.volumeIterations, threads);
+      preserveVolume(f, inside, b.dims, vol.spacing, eps, params.volumeIterations, threads);
+    std::vector<uint8_t>().swap(inside);
+    b.f = BrickGrid(f, b.dims, threads);
     doneVoxels += double(n);
     ctx.progress(doneVoxels / std::max(1.0, totalVoxels));
   }
   field.boxes_ = std::move(boxes);
+  ctx.debug("IndicatorFunctions: " + std::to_string(field.storedBytes() >> 20) + " MB in bricks, " +
+            std::to_string(field.denseBytes() >> 20) + " MB as dense boxes");
   return field;
 }
 

@@ -15,9 +15,12 @@
 /// the box (positive outside). The sign at every voxel centre still matches the label map.
 ///
 /// Multi-material: a point belongs to argmax_m f_m; the interface of a and b is f_a = f_b >= others.
-/// Each f_m is stored only on its material's bounding box plus the band (memory follows size).
+/// Each f_m is stored only on its material's bounding box plus the band, in a BrickGrid: beyond
+/// the band, where f_m is clamped, a brick of 8^3 voxels keeps one value (memory follows the
+/// interfaces' area rather than the boxes' volume; the values are those of a dense box).
 /// Positions are local voxel indices of the PreprocessedVolume grid.
 
+#include <femesher/BrickGrid.h>
 #include <femesher/Types.h>
 #include <femesher/stages/LabelPreprocess.h>
 
@@ -42,18 +45,24 @@ class IndicatorField {
  public:
   struct Box {
     std::array<int, 3> lo{{0, 0, 0}}, dims{{0, 0, 0}};
-    std::vector<float> f;
+    BrickGrid f;  ///< dims samples
   };
 
   const PreprocessedVolume& volume() const { return *vol_; }
   /// Points the field at `volume`, which must hold the same grid as the one it was computed on
   /// (that volume moved or copied elsewhere): keeping a field beyond its run (DeferredCurving.h).
   void rebind(const PreprocessedVolume& volume) { vol_ = &volume; }
-  /// Bytes of the stored samples (one float per voxel of each material's box plus band).
+  /// Bytes of the stored samples (the bricks of each material's box plus band).
   size_t storedBytes() const {
     size_t n = 0;
-    for (const Box& b : boxes_) n += b.f.capacity() * sizeof(float);
+    for (const Box& b : boxes_) n += b.f.bytes();
     return n;
+  }
+  /// Bytes the same boxes would take as dense floats.
+  size_t denseBytes() const {
+    size_t n = 0;
+    for (const Box& b : boxes_) n += size_t(b.dims[0]) * size_t(b.dims[1]) * size_t(b.dims[2]);
+    return n * sizeof(float);
   }
   int labelCount() const { return int(boxes_.size()); }  ///< compact ids 0..N
 

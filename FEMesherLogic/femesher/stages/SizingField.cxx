@@ -173,8 +173,18 @@ void limitByCurvature(const LabelVolume& volume, const IndicatorField& f, double
 
 }  // namespace
 
+void SizingField::pack(int threads) {
+  if (h.empty()) return;
+  packed = BrickGrid(h, grid.dims, threads);
+  std::vector<float>().swap(h);
+}
+
+std::vector<float> SizingField::values(int threads) const {
+  return h.empty() ? packed.dense(threads) : h;
+}
+
 float SizingField::at(const Vec3& c) const {
-  if (h.empty()) return 0.f;
+  if (empty()) return 0.f;
   int i0[3];
   double t[3];
   int i1[3];
@@ -191,7 +201,7 @@ float SizingField::at(const Vec3& c) const {
     const int bx = corner & 1, by = (corner >> 1) & 1, bz = (corner >> 2) & 1;
     const double wgt = (bx ? t[0] : 1 - t[0]) * (by ? t[1] : 1 - t[1]) * (bz ? t[2] : 1 - t[2]);
     if (wgt == 0) continue;
-    v += wgt * h[grid.index(bx ? i1[0] : i0[0], by ? i1[1] : i0[1], bz ? i1[2] : i0[2])];
+    v += wgt * value(bx ? i1[0] : i0[0], by ? i1[1] : i0[1], bz ? i1[2] : i0[2]);
   }
   return float(v);
 }
@@ -426,6 +436,11 @@ SizingField computeSizingField(const LabelVolume& volume, const LabelMedialAxes&
   const int sweeps = limitGradation(grid, field.h, params.gradation, &ctx);
   ctx.debug("SizingField: gradation limit in " + std::to_string(sweeps) + " sweeps, " +
             std::to_string(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()) + " s");
+  if (!field.h.empty()) {
+    const auto [lowest, highest] = std::minmax_element(field.h.begin(), field.h.end());
+    field.lowest = *lowest;
+    field.highest = *highest;
+  }
   ctx.progress(1.0);
   return field;
 }

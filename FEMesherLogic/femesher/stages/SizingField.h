@@ -27,6 +27,7 @@
 /// Frame: the field lives on the label map's grid in the CANONICAL frame (mm, spacing ⊙ index),
 /// x fastest, so a writer can store `h` with the input's geometry (origin, direction).
 
+#include <femesher/BrickGrid.h>
 #include <femesher/Status.h>
 #include <femesher/Types.h>
 #include <femesher/stages/FeatureTransform.h>
@@ -81,14 +82,26 @@ MedialAxisParameters medialAxisParameters(const SizingParameters& params);
 /// Target edge length on a grid (canonical frame).
 struct SizingField {
   Grid3 grid;
-  std::vector<float> h;  ///< mm, grid.size() values, x fastest
+  std::vector<float> h;  ///< mm, grid.size() values, x fastest (empty once packed)
+  /// The same values after pack(): where h is hMax or graded evenly far from the interfaces, a
+  /// brick of 8^3 voxels holds one value (a run keeps its field packed).
+  BrickGrid packed;
   double hMin = 0, hMax = 0;      ///< resolved bounds used
+  float lowest = 0, highest = 0;  ///< the smallest and largest value of h
   size_t medialVoxels = 0;        ///< medial voxels of all labels (diagnostics)
   size_t interfaceVoxels = 0;     ///< voxels where h0 came from the lfs
 
-  bool empty() const { return h.empty(); }
+  bool empty() const { return h.empty() && packed.empty(); }
+  /// h at a voxel, dense or packed.
+  float value(int i, int j, int k) const {
+    return h.empty() ? packed.at(i, j, k) : h[grid.index(i, j, k)];
+  }
   /// Trilinear interpolation at a canonical position (mm); clamped to the grid.
   float at(const Vec3& canonicalPosition) const;
+  /// Moves h into `packed` (every value read afterwards is the same float; h is released).
+  void pack(int threads);
+  /// The values as a dense grid, x fastest (h itself, or `packed` unpacked).
+  std::vector<float> values(int threads = 0) const;
 };
 
 /// Resolved bounds (auto values applied, an automatic hMin lowered to hMax when above it) for a
