@@ -24,7 +24,6 @@ after (other work on the machine distorts timings: run it alone).
 
 Timings are printed, never asserted."""
 import argparse
-import ctypes
 import gzip
 import json
 import os
@@ -36,6 +35,8 @@ import threading
 import time
 
 import numpy as np
+
+from process_tree import PAGE, counts_own_memory, descendants
 
 ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
 ap.add_argument("names", nargs="*")
@@ -51,7 +52,6 @@ args = ap.parse_args()
 femesher = os.path.abspath(os.path.join(args.build, "bin", "femesher"))
 out = args.keep or tempfile.mkdtemp(prefix="clinical_")
 os.makedirs(out, exist_ok=True)
-PAGE = os.sysconf("SC_PAGE_SIZE")
 TICK = os.sysconf("SC_CLK_TCK")
 MB = 1e6  # decimal megabytes, as in the README
 
@@ -116,31 +116,6 @@ def input_for(name):
     return path, int(np.prod(dims)), dims
 
 
-# A child between posix_spawn's clone(CLONE_VM | CLONE_VFORK) and its exec shares the parent's
-# memory (one address space, not copies): its VmRSS is the parent's and must not count again.
-# kcmp(KCMP_VM) says whether two processes share it (x86_64 / aarch64 syscall numbers).
-_SYS_KCMP = {"x86_64": 312, "aarch64": 272}.get(os.uname().machine)
-_LIBC = ctypes.CDLL(None, use_errno=True)
-
-
-def same_memory(a, b):
-    return _SYS_KCMP is not None and _LIBC.syscall(_SYS_KCMP, a, b, 0, 0, 0) == 0  # KCMP_VM = 0
-
-
-def descendants(pid):
-    todo, seen = [pid], []
-    while todo:
-        p = todo.pop()
-        seen.append(p)
-        try:
-            for t in os.listdir("/proc/%d/task" % p):
-                with open("/proc/%d/task/%s/children" % (p, t)) as f:
-                    todo += [int(c) for c in f.read().split()]
-        except (FileNotFoundError, ProcessLookupError, PermissionError):
-            pass
-    return seen
-
-
 def sample(pid):
     """(tree RSS bytes, tree CPU seconds, main RSS bytes, main VmHWM bytes or None, processes)."""
     rss = cpu = 0
@@ -153,7 +128,7 @@ def sample(pid):
             # fields after the name: state(0) ... utime(11) stime(12) cutime(13) cstime(14) rss(21)
             cpu += sum(int(x) for x in st[11:15]) / TICK
             r = int(st[21]) * PAGE
-            rss += r if p == pid or not same_memory(pid, p) else 0
+            rss += r if counts_own_memory(pid, p) else 0
             if p == pid:
                 main_rss = r
                 with open("/proc/%d/status" % p) as f:

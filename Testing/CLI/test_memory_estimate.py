@@ -5,7 +5,6 @@ stated factor (kMemoryEstimateFactor, 1.5) of the peak resident size of the proc
 here (the femesher process and its TetGen children, sampled every 20 ms from /proc), and a run
 whose estimate exceeds the memory available (played with FEMESHER_MEMORY_AVAILABLE, the variable
 the code reads for tests) warns on stderr and in the report, and still runs."""
-import ctypes
 import json
 import os
 import re
@@ -14,10 +13,12 @@ import sys
 import tempfile
 import time
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "Benchmarks"))
+from process_tree import tree_rss  # noqa: E402
+
 CLI = os.environ["FEMESHER_CLI"]
 TMP = tempfile.mkdtemp(prefix="memest_", dir=os.environ.get("FEMESHER_TMP"))
 FACTOR = 1.5  # kMemoryEstimateFactor
-PAGE = os.sysconf("SC_PAGE_SIZE")
 failures = []
 
 
@@ -25,33 +26,6 @@ def check(cond, msg):
     print(("ok:   " if cond else "FAIL: ") + msg)
     if not cond:
         failures.append(msg)
-
-
-# A child between posix_spawn's clone(CLONE_VM | CLONE_VFORK) and its exec shares the parent's
-# memory (one address space, not copies): its VmRSS is the parent's and must not count again.
-# kcmp(KCMP_VM) says whether two processes share it (x86_64 / aarch64 syscall numbers).
-_SYS_KCMP = {"x86_64": 312, "aarch64": 272}.get(os.uname().machine)
-_LIBC = ctypes.CDLL(None, use_errno=True)
-
-
-def same_memory(a, b):
-    return _SYS_KCMP is not None and _LIBC.syscall(_SYS_KCMP, a, b, 0, 0, 0) == 0  # KCMP_VM = 0
-
-
-def tree_rss(pid):
-    total, todo = 0, [pid]
-    while todo:
-        p = todo.pop()
-        try:
-            with open("/proc/%d/stat" % p) as f:
-                if p == pid or not same_memory(pid, p):
-                    total += int(f.read().rsplit(")", 1)[1].split()[21]) * PAGE
-            for t in os.listdir("/proc/%d/task" % p):
-                with open("/proc/%d/task/%s/children" % (p, t)) as f:
-                    todo += [int(c) for c in f.read().split()]
-        except (FileNotFoundError, ProcessLookupError, IndexError):
-            pass
-    return total
 
 
 def mesh(volume, name, env=None):

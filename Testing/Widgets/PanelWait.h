@@ -1,10 +1,12 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #pragma once
 /// \file PanelWait.h
-/// Shared by the widget tests: waiting for a panel's run to end while the event loop runs.
+/// Shared by the widget tests: a run long enough to cancel, and waiting on a panel's run while the
+/// event loop runs.
 
 #include <qFEMesherPanelWidget.h>
 
+#include <QDoubleSpinBox>
 #include <QElapsedTimer>
 #include <QtTest>
 
@@ -16,4 +18,26 @@ inline bool waitForPanelEnd(const qFEMesherPanelWidget& panel, int timeoutMs, in
   while (panel.isRunning() && t.elapsed() < timeoutMs) QTest::qWait(20);
   QTest::qWait(settleMs);
   return !panel.isRunning();
+}
+
+/// Processes events until `reached()` holds or the run ended (at most `timeoutMs`); true when
+/// `reached()` holds while the panel still runs. Unlike a QTRY, which waits three times its
+/// timeout for a condition that cannot hold any more, it returns as soon as the run has ended.
+template <class Condition>
+bool waitWhileRunning(const qFEMesherPanelWidget& panel, Condition reached, int timeoutMs) {
+  QElapsedTimer t;
+  t.start();
+  while (!reached() && panel.isRunning() && t.elapsed() < timeoutMs) QTest::qWait(20);
+  return reached() && panel.isRunning();
+}
+
+/// Parameters of a run to cancel: the fine preset with a bound on the tet volume. The phantom's
+/// fine run takes 1.3 s, 0.1 s of it the particle system; with the bound the stages after it take
+/// ~15 s, far beyond a slow GUI tick (the cancel stops them; applyPreset lifts the bound).
+inline bool useLongRun(qFEMesherPanelWidget& panel) {
+  auto* bound =
+      qobject_cast<QDoubleSpinBox*>(panel.parameterEditor(QStringLiteral("max_tet_volume")));
+  if (!panel.applyPreset(QStringLiteral("fine")) || !bound) return false;
+  bound->setValue(0.05);
+  return true;
 }

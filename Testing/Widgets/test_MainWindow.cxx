@@ -84,17 +84,15 @@ class MainWindowTest : public QObject {
     QTRY_VERIFY_WITH_TIMEOUT(window_->view()->content() == qFEMesherPreviewView::Content::Mesh, 60000);
     QCOMPARE(window_->view()->displayedCellCount(), first->mesh.tets.size());
     QCOMPARE(window_->histograms()->plot(0)->totalCount(), first->mesh.tets.size());
-    // A long second run, canceled once the live preview replaced the mesh in the view (the fine
-    // run takes 1.3 s; a bound on the tet volume gives the stages after the particles ~15 s).
-    QVERIFY(panel()->applyPreset(QStringLiteral("fine")));
-    qobject_cast<QDoubleSpinBox*>(panel()->parameterEditor(QStringLiteral("max_tet_volume")))->setValue(0.05);
+    // A long second run, canceled once the live preview replaced the mesh in the view.
+    QVERIFY(useLongRun(*panel()));
     QVERIFY(panel()->run());
     QCOMPARE(window_->histograms()->plot(0)->totalCount(), first->mesh.tets.size());
-    // Ends at once should the run end first (a QTRY that cannot succeed waits 3x its timeout).
-    QTRY_VERIFY_WITH_TIMEOUT(
-        window_->view()->content() == qFEMesherPreviewView::Content::Preview || !panel()->isRunning(),
-        120000);
-    QVERIFY2(panel()->isRunning(), "the run ended before it could be canceled");
+    QVERIFY2(waitWhileRunning(
+                 *panel(),
+                 [&] { return window_->view()->content() == qFEMesherPreviewView::Content::Preview; },
+                 120000),
+             "the run ended before it could be canceled");
     panel()->cancel();
     QVERIFY(waitForEnd(60000));
     QCOMPARE(panel()->runState(), QStringLiteral("canceled"));

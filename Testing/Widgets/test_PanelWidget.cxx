@@ -212,24 +212,18 @@ class PanelWidgetTest : public QObject {
   }
 
   void cancelMidRun() {
-    // A long run: fine elements and many particle iterations.
-    QVERIFY(panel_->applyPreset(QStringLiteral("fine")));
-    // A run that outlasts a slow GUI tick by far: the phantom's fine run takes 1.3 s, 0.1 s of it
-    // the particle system; a bound on the tet volume makes the stages after it take ~15 s (the
-    // cancel stops them; the next test's applyPreset lifts the bound).
-    spin("max_tet_volume")->setValue(0.05);
+    QVERIFY(useLongRun(*panel_));
     QSignalSpy progress(panel_.get(), &qFEMesherPanelWidget::progressChanged);
     QSignalSpy ended(panel_.get(), &qFEMesherPanelWidget::runEnded);
     QVERIFY(panel_->run());
     QCOMPARE(panel_->runState(), QStringLiteral("running"));
     QVERIFY(!panel_->runButton()->isEnabled());
     QVERIFY(panel_->cancelButton()->isEnabled());
-    // Wait until the particle system runs (the GUI keeps processing events meanwhile). Every
-    // stage the run enters is forwarded, so the wait ends at the particle system or, should the
-    // run end first, at once (a QTRY that cannot succeed waits three times its timeout).
-    QTRY_VERIFY_WITH_TIMEOUT(
-        reached(progress, QStringLiteral("ParticleSystem")) || !panel_->isRunning(), 120000);
-    QVERIFY2(panel_->isRunning(), "the run ended before it could be canceled");
+    // Wait until the particle system runs (the GUI keeps processing events meanwhile; every
+    // stage the run enters is forwarded).
+    QVERIFY2(waitWhileRunning(*panel_, [&] { return reached(progress, QStringLiteral("ParticleSystem")); },
+                              120000),
+             "the run ended before it could be canceled");
     QVERIFY(panel_->progressBar()->format().contains(
         qFEMesherPanelWidget::stageTitle(QStringLiteral("ParticleSystem"))));
     panel_->cancel();
@@ -451,20 +445,16 @@ class PanelWidgetTest : public QObject {
     QVERIFY(first);
     const QString before = tmpFile(QStringLiteral("first.mesh"));
     QVERIFY2(panel_->exportMesh(before), qPrintable(panel_->lastError()));
-    QVERIFY(panel_->applyPreset(QStringLiteral("fine")));
-    // A run that outlasts a slow GUI tick by far: the phantom's fine run takes 1.3 s, 0.1 s of it
-    // the particle system; a bound on the tet volume makes the stages after it take ~15 s (the
-    // cancel stops them; the next test's applyPreset lifts the bound).
-    spin("max_tet_volume")->setValue(0.05);
+    QVERIFY(useLongRun(*panel_));
     QSignalSpy progress(panel_.get(), &qFEMesherPanelWidget::progressChanged);
     QSignalSpy ended(panel_.get(), &qFEMesherPanelWidget::runEnded);
     QVERIFY(panel_->run());
     QCOMPARE(panel_->result().get(), first.get());
     for (const QString& ext : panel_->exportExtensions())
       QVERIFY2(panel_->exportButton(ext)->isEnabled(), qPrintable(ext));
-    QTRY_VERIFY_WITH_TIMEOUT(
-        reached(progress, QStringLiteral("ParticleSystem")) || !panel_->isRunning(), 120000);
-    QVERIFY2(panel_->isRunning(), "the run ended before it could be canceled");
+    QVERIFY2(waitWhileRunning(*panel_, [&] { return reached(progress, QStringLiteral("ParticleSystem")); },
+                              120000),
+             "the run ended before it could be canceled");
     const QString during = tmpFile(QStringLiteral("during.mesh"));
     QVERIFY2(panel_->exportMesh(during), qPrintable(panel_->lastError()));
     panel_->cancel();
