@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <random>
 
 #include "MeshInvariants.h"
 #include "TestShapes.h"
@@ -355,6 +356,35 @@ TEST(IndicatorFunctions, SameFieldForAnyThreadCount) {
       for (int j = 0; j < pv.dims[1]; ++j)
         for (int i = 0; i < pv.dims[0]; ++i) differ += a.value(m, i, j, k) != b.value(m, i, j, k);
   EXPECT_EQ(differ, 0u);
+}
+
+// evalGradient (what the Newton projections onto interfaces use) gives exactly eval's value and
+// gradient's vector, bit for bit: inside the grid, across brick borders (cells whose corners lie
+// in two or more 8^3 bricks), beyond the material boxes, near and outside the input's box.
+TEST(IndicatorFunctions, EvalGradientIsEvalAndGradientExactly) {
+  const PreprocessedVolume pv = preprocessedBalls(40, {0.5, 0.6, 0.7});
+  const IndicatorField f = indicators(pv, 0.8, 2);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> x(-3.0, pv.dims[0] + 2.0), y(-3.0, pv.dims[1] + 2.0),
+      z(-3.0, pv.dims[2] + 2.0), frac(0.0, 1.0);
+  std::vector<Vec3> at;
+  for (int n = 0; n < 20000; ++n) at.push_back({x(rng), y(rng), z(rng)});
+  for (int n = 0; n < 2000; ++n)  // in cells across a brick border (x = 7.something)
+    at.push_back({7 + frac(rng), 8 * frac(rng) * pv.dims[1] / 8, 15 + frac(rng)});
+  for (int n = 0; n < 2000; ++n)  // on the input's box faces and just beside them
+    at.push_back({-0.5 - pv.offset[0] + 1e-4 * (n % 3 - 1), y(rng), z(rng)});
+  size_t differ = 0, boxBranch = 0;
+  for (const Vec3& l : at)
+    for (int m = 0; m < f.labelCount(); ++m) {
+      Vec3 g;
+      const double v = f.evalGradient(m, l, g);
+      const Vec3 ref = f.gradient(m, l);
+      differ += !(v == f.eval(m, l) || (std::isnan(v) && std::isnan(f.eval(m, l))));
+      differ += g != ref;
+      boxBranch += m > 0 && l[0] < -0.5 - pv.offset[0];
+    }
+  EXPECT_EQ(differ, 0u);
+  EXPECT_GT(boxBranch, 0u) << "points outside the input's box were tried";
 }
 
 TEST(IndicatorFunctions, CancelStopsTheStage) {

@@ -240,6 +240,59 @@ TEST(Optimize, RemovesFloatingFragmentsButNeverAMaterialsLastPiece) {
   EXPECT_EQ(again.t.size(), 3u);
 }
 
+// Many floating pieces (more than the search's chunks of tets): the pieces lighter than the limit
+// go, the same ones on one thread as on three.
+TEST(Optimize, RemovesTheSameFragmentsOnAnyThreadCount) {
+  auto build = [](std::vector<Vec3>& p, std::vector<std::array<int32_t, 4>>& t,
+                  std::vector<int32_t>& labels) {
+    // 300 pieces of two tets sharing a face, edge a in 0.3 .. 1.5 mm (a = 0.9: a piece heavier
+    // than the limit whose tets are each lighter, in every few tets); plus a heavy piece per
+    // material so that no material loses its last piece.
+    for (int n = 0; n < 302; ++n) {
+      const double a = n >= 300 ? 4.0 : 0.3 + 1.2 * (n % 7) / 6.0;
+      const Vec3 o{10.0 * (n % 20), 10.0 * (n / 20), 0};
+      const int32_t b = int32_t(p.size());
+      for (const Vec3& d : {Vec3{0, 0, 0}, Vec3{a, 0, 0}, Vec3{0, a, 0}, Vec3{0, 0, a},
+                            Vec3{a, a, a}})
+        p.push_back({o[0] + d[0], o[1] + d[1], o[2] + d[2]});
+      std::array<int32_t, 4> T1{b, b + 1, b + 2, b + 3}, T2{b + 1, b + 2, b + 3, b + 4};
+      orientPositively(p, T1);
+      orientPositively(p, T2);
+      t.push_back(T1);
+      t.push_back(T2);
+      labels.push_back(1 + n % 2);
+      labels.push_back(1 + n % 2);
+    }
+  };
+  OptimizeParameters op;
+  op.targetMinDihedral = 0;
+  op.minFragmentVoxels = 1;
+  op.voxelVolume = 0.2;  // two tets of edge a: a^3 / 6 + a^3 / 3 = a^3 / 2 mm^3; light below a^3 < 0.4
+  std::vector<Vec3> p1, p3;
+  std::vector<std::array<int32_t, 4>> t1, t3;
+  std::vector<int32_t> l1, l3;
+  build(p1, t1, l1);
+  build(p3, t3, l3);
+  RunContext one, three;
+  one.setThreads(1);
+  three.setThreads(3);
+  const auto r1 = optimizeTetMesh(p1, t1, l1, op, one);
+  const auto r3 = optimizeTetMesh(p3, t3, l3, op, three);
+  size_t light = 0;
+  for (int n = 0; n < 300; ++n) {
+    const double a = 0.3 + 1.2 * (n % 7) / 6.0;
+    light += a * a * a / 2 < 0.2;
+  }
+  EXPECT_GT(light, 30u);
+  EXPECT_EQ(r1.fragments, light);
+  EXPECT_EQ(r1.fragmentTets, 2 * light);
+  EXPECT_EQ(r3.fragments, r1.fragments);
+  EXPECT_EQ(r3.fragmentVolume, r1.fragmentVolume);
+  EXPECT_EQ(t3, t1);
+  EXPECT_EQ(p3, p1);
+  EXPECT_EQ(l3, l1);
+}
+
 // A floating piece holding a tet below the target goes up to ten times the fragment limit (no
 // operation can mend a piece whose every face is outer); a well-shaped piece that heavy stays.
 TEST(Optimize, RemovesAHeavierFloatingPieceOnlyWhenItHoldsABadTet) {

@@ -291,23 +291,28 @@ void IndicatorField::corners(int m, int i, int j, int k, double out[8]) const {
   for (int c = 0; c < 8; ++c) out[c] = valueRaw(m, i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
 }
 
-double IndicatorField::evalRaw(int m, const Vec3& l) const {
-  const int i = int(std::floor(l[0])), j = int(std::floor(l[1])), k = int(std::floor(l[2]));
-  const double u = l[0] - i, v = l[1] - j, w = l[2] - k;
-  double f[8];
-  corners(m, i, j, k, f);
+IndicatorField::CellPlace IndicatorField::placeOf(const Vec3& l) {
+  CellPlace c;
+  c.i = int(std::floor(l[0]));
+  c.j = int(std::floor(l[1]));
+  c.k = int(std::floor(l[2]));
+  c.u = l[0] - c.i;
+  c.v = l[1] - c.j;
+  c.w = l[2] - c.k;
+  return c;
+}
+
+double IndicatorField::interpolate(const double f[8], const CellPlace& c) {
+  const double u = c.u, v = c.v, w = c.w;
   const double x00 = f[0] + u * (f[1] - f[0]), x10 = f[2] + u * (f[3] - f[2]);
   const double x01 = f[4] + u * (f[5] - f[4]), x11 = f[6] + u * (f[7] - f[6]);
   const double y0 = x00 + v * (x10 - x00), y1 = x01 + v * (x11 - x01);
   return y0 + w * (y1 - y0);
 }
 
-Vec3 IndicatorField::gradientRaw(int m, const Vec3& l) const {
-  const int i = int(std::floor(l[0])), j = int(std::floor(l[1])), k = int(std::floor(l[2]));
-  const double u = l[0] - i, v = l[1] - j, w = l[2] - k;
+Vec3 IndicatorField::interpolateGradient(const double fc[8], const CellPlace& p) {
+  const double u = p.u, v = p.v, w = p.w;
   Vec3 g{0, 0, 0};
-  double fc[8];
-  corners(m, i, j, k, fc);
   for (int c = 0; c < 8; ++c) {
     const int di = c & 1, dj = (c >> 1) & 1, dk = (c >> 2) & 1;
     const double f = fc[c];
@@ -317,6 +322,20 @@ Vec3 IndicatorField::gradientRaw(int m, const Vec3& l) const {
     g[2] += (dk ? 1 : -1) * wu * wv * f;
   }
   return g;
+}
+
+double IndicatorField::evalRaw(int m, const Vec3& l) const {
+  const CellPlace c = placeOf(l);
+  double f[8];
+  corners(m, c.i, c.j, c.k, f);
+  return interpolate(f, c);
+}
+
+Vec3 IndicatorField::gradientRaw(int m, const Vec3& l) const {
+  const CellPlace c = placeOf(l);
+  double f[8];
+  corners(m, c.i, c.j, c.k, f);
+  return interpolateGradient(f, c);
 }
 
 double IndicatorField::boxDistance(const Vec3& l, Vec3* grad) const {
@@ -393,6 +412,20 @@ Vec3 IndicatorField::gradient(int m, const Vec3& l) const {
     return g;
   }
   return gradientRaw(m, l);
+}
+
+double IndicatorField::evalGradient(int m, const Vec3& l, Vec3& grad) const {
+  const CellPlace c = placeOf(l);
+  double corner[8];
+  corners(m, c.i, c.j, c.k, corner);
+  const double f = interpolate(corner, c), d = boxDistance(l, &grad);
+  if (m == 0 ? d > f : -d < f) {  // the box is the active branch (as gradient)
+    if (m != 0)
+      for (double& x : grad) x = -x;
+  } else {
+    grad = interpolateGradient(corner, c);
+  }
+  return clip(m, f, d);
 }
 
 int IndicatorField::cornerLabels(const Vec3& l, int out[8]) const {
@@ -553,15 +586,16 @@ bool moveOntoInterface(const IndicatorField& f, int a, int b, Vec3& x) {
   const double h = vol.minSpacing(), tol = 1e-4 * h;
   const Vec3 start = vol.localToCanonical(x);
   for (int it = 0; it < 25; ++it) {
-    const double gap = f.eval(a, x) - f.eval(b, x);
-    const Vec3 ga = f.gradient(a, x), gb = f.gradient(b, x);
+    Vec3 ga, gb;
+    const double fa = f.evalGradient(a, x, ga), fb = f.evalGradient(b, x, gb);
+    const double gap = fa - fb;
     Vec3 d;
     for (int k = 0; k < 3; ++k) d[k] = (ga[k] - gb[k]) / vol.spacing[k];
     if (std::fabs(gap) < tol) {
       if (norm(sub(vol.localToCanonical(x), start)) > 2 * h) return false;
       int around[8];
       const int n = f.cornerLabels(x, around);
-      const double own = std::min(f.eval(a, x), f.eval(b, x));
+      const double own = std::min(fa, fb);
       for (int c = 0; c < n; ++c)
         if (around[c] != a && around[c] != b && f.eval(around[c], x) > own + 10 * tol) return false;
       return true;

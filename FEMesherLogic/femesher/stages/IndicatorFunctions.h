@@ -78,6 +78,9 @@ class IndicatorField {
   /// edge or a corner (a particle on a corner of CGAL's 20012323 saw its normal flip between
   /// two faces' from one iteration to the next and its neighbours never settled).
   Vec3 gradient(int m, const Vec3& l) const;
+  /// eval and gradient together (exactly their values, one lookup of the cell): f_m, its gradient
+  /// in `grad`.
+  double evalGradient(int m, const Vec3& l, Vec3& grad) const;
   /// `l` moved exactly onto the input's box when it lies within `tolerance` mm of it (clamped
   /// into the box, then onto the nearest face), else unchanged. Projections onto the box faces
   /// stop within their tolerance; snapping makes points on a box face exactly coplanar.
@@ -101,6 +104,15 @@ class IndicatorField {
   float valueRaw(int m, int i, int j, int k) const;
   double evalRaw(int m, const Vec3& l) const;
   Vec3 gradientRaw(int m, const Vec3& l) const;
+  /// The cell of l (lowest corner) and l's place in it.
+  struct CellPlace {
+    int i, j, k;
+    double u, v, w;
+  };
+  static CellPlace placeOf(const Vec3& l);
+  /// The trilinear interpolant of a cell's corners f and its gradient at (u, v, w).
+  static double interpolate(const double f[8], const CellPlace& c);
+  static Vec3 interpolateGradient(const double f[8], const CellPlace& c);
   const PreprocessedVolume* vol_ = nullptr;
   Vec3 boxLo_{{0, 0, 0}}, boxHi_{{0, 0, 0}};  ///< the input's box, local index units
   std::vector<Box> boxes_;

@@ -47,13 +47,46 @@ void vertexInterfaces(const Editor& m, const OptimizeInterfaces& in, int32_t v,
                       std::vector<int>& materials, std::vector<InterfaceFace>& faces) {
   materials.clear();
   faces.clear();
-  for (uint32_t t : m.around[size_t(v)]) {
+  // Every face here holds v, so the tet across it is in v's star: pair the star's faces by their
+  // two other vertices (a face held by more than two tets is left to Editor::across, which picks
+  // the same tet it always did).
+  const auto& star = m.around[size_t(v)];
+  thread_local std::vector<std::pair<std::array<int32_t, 2>, uint32_t>> keys;
+  thread_local std::vector<int64_t> acrossOf;
+  keys.clear();
+  acrossOf.assign(4 * star.size(), -1);
+  for (size_t i = 0; i < star.size(); ++i)
+    for (int k = 0; k < 4; ++k) {
+      const auto& T = m.tets[star[i]];
+      if (T[size_t(k)] == v) continue;
+      std::array<int32_t, 2> o{};
+      int n = 0;
+      for (int c = 0; c < 4; ++c)
+        if (c != k && T[size_t(c)] != v) o[size_t(n++)] = T[size_t(c)];
+      if (o[0] > o[1]) std::swap(o[0], o[1]);
+      keys.push_back({o, uint32_t(4 * i + size_t(k))});
+    }
+  std::sort(keys.begin(), keys.end());
+  for (size_t a = 0; a < keys.size();) {
+    size_t b = a + 1;
+    while (b < keys.size() && keys[b].first == keys[a].first) ++b;
+    if (b - a == 2) {
+      acrossOf[keys[a].second] = int64_t(star[keys[a + 1].second / 4]);
+      acrossOf[keys[a + 1].second] = int64_t(star[keys[a].second / 4]);
+    } else if (b - a > 2) {
+      for (size_t c = a; c < b; ++c) acrossOf[keys[c].second] = -2;
+    }
+    a = b;
+  }
+  for (size_t i = 0; i < star.size(); ++i) {
+    const uint32_t t = star[i];
     materials.push_back(m.labels[t]);
     for (int k = 0; k < 4; ++k) {
       const int32_t opposite = m.tets[t][size_t(k)];
       if (opposite == v) continue;
       const auto f = m.face(t, k);
-      const int64_t s = m.across(t, f[0], f[1], f[2]);
+      int64_t s = acrossOf[4 * i + size_t(k)];
+      if (s == -2) s = m.across(t, f[0], f[1], f[2]);
       const int own = m.labels[t], other = s < 0 ? 0 : m.labels[size_t(s)];
       if (other == own || (s >= 0 && other < own)) continue;  // inside, or seen from the other side
       if (s < 0 && (in.boxPlanes(m.pts[size_t(f[0])]) &

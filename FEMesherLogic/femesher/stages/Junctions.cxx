@@ -23,6 +23,12 @@ struct Eval {
     const Vec3 g = f.gradient(m, l);
     return {g[0] / vol.spacing[0], g[1] / vol.spacing[1], g[2] / vol.spacing[2]};
   }
+  /// value and grad together (one lookup of the cell).
+  double valueGrad(int m, const Vec3& l, Vec3& g) const {
+    const double v = f.evalGradient(m, l, g);
+    g = {g[0] / vol.spacing[0], g[1] / vol.spacing[1], g[2] / vol.spacing[2]};
+    return v;
+  }
   Vec3 moveLocal(const Vec3& l, const Vec3& dc) const {  // add a canonical displacement
     return {l[0] + dc[0] / vol.spacing[0], l[1] + dc[1] / vol.spacing[1], l[2] + dc[2] / vol.spacing[2]};
   }
@@ -34,12 +40,13 @@ bool solveJunction(const Eval& e, const uint16_t* l, int n, Vec3& x, double tol)
   for (int it = 0; it < 20; ++it) {
     double F[3];
     Vec3 J[3];
-    const double fa = e.value(l[0], x);
-    const Vec3 ga = e.grad(l[0], x);
+    Vec3 ga;
+    const double fa = e.valueGrad(l[0], x, ga);
     double maxF = 0;
     for (int r = 0; r < n - 1; ++r) {
-      F[r] = fa - e.value(l[r + 1], x);
-      J[r] = sub(ga, e.grad(l[r + 1], x));
+      Vec3 gr;
+      F[r] = fa - e.valueGrad(l[r + 1], x, gr);
+      J[r] = sub(ga, gr);
       maxF = std::max(maxF, std::fabs(F[r]));
     }
     if (maxF < tol) return true;

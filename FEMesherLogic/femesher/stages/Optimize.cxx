@@ -629,13 +629,13 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
     // with a flat tet may be mended by the rounds and then stay.)
     if (params.minFragmentVoxels > 0)
       removeFragments(points, tets, labels, params.minFragmentVoxels * params.voxelVolume,
-                      params.minFragmentVoxels * params.voxelVolume, 0, r);
+                      params.minFragmentVoxels * params.voxelVolume, 0, ctx.threads(), r);
     improve(points, tets, labels, params, interfaces, ctx, r);
   }
   if (params.minFragmentVoxels > 0)
     removeFragments(points, tets, labels, params.minFragmentVoxels * params.voxelVolume,
                     kBadFragmentFactor * params.minFragmentVoxels * params.voxelVolume,
-                    params.targetMinDihedral, r);
+                    params.targetMinDihedral, ctx.threads(), r);
   survey(r.tetsBelowTargetAfter, r.tetsBelow5After, r.minDihedralAfter);
   ctx.progress(1.0);
   return r;

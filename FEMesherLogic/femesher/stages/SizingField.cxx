@@ -62,8 +62,8 @@ bool interfaceHeight(const IndicatorField& f, int a, int b, const Vec3& sp, cons
   for (int it = 0; it < 4; ++it) {
     const Vec3 q = add(p, scale(n, z));
     const Vec3 l{{q[0] / sp[0], q[1] / sp[1], q[2] / sp[2]}};
-    const double g = f.eval(a, l) - f.eval(b, l);
-    const Vec3 ga = f.gradient(a, l), gb = f.gradient(b, l);
+    Vec3 ga, gb;
+    const double g = f.evalGradient(a, l, ga) - f.evalGradient(b, l, gb);
     double dg = 0;
     for (int k = 0; k < 3; ++k) dg += (ga[k] - gb[k]) / sp[k] * n[k];
     if (!(dg > 1e-6)) return false;

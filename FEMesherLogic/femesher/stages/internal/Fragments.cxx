@@ -2,6 +2,7 @@
 // What the Optimize stage removes from the outer boundary (see Optimize.h): peeling of flat tets
 // with an outer face, the specks a peeled tet cuts off, and floating fragments
 // (OptimizeParameters::minFragmentVoxels); and eraseTets, the compaction they use.
+#include <femesher/Parallel.h>
 #include <femesher/VecMath.h>
 #include <femesher/stages/internal/OptimizeEditor.h>
 
@@ -182,7 +183,7 @@ void specksCutOff(const Editor& m, uint32_t t, const int64_t nb[4], double minVo
 // removeFragments: see OptimizeEditor.h.
 void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
                      std::vector<int32_t>& labels, double minVolume, double badMinVolume,
-                     double target, OptimizeResult& r) {
+                     double target, int threads, OptimizeResult& r) {
   const size_t n = tets.size();
   if (n == 0) return;
   // Union-find over tets sharing a face; each piece's root is its first tet. A face's other tets
@@ -207,25 +208,45 @@ void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 
     const auto& S = tets[s];
     return S[0] == v || S[1] == v || S[2] == v || S[3] == v;
   };
-  for (uint32_t t = 0; t < n; ++t)
-    for (int k = 0; k < 4; ++k) {
-      const auto& T = tets[t];
-      const int32_t a = T[size_t((k + 1) % 4)], b = T[size_t((k + 2) % 4)], c = T[size_t((k + 3) % 4)];
-      for (uint32_t i = first[size_t(a)]; i < first[size_t(a) + 1]; ++i) {
-        const uint32_t s = incident[i];
-        if (s <= t || !holds(s, b) || !holds(s, c)) continue;
-        const uint32_t x = find(t), y = find(s);
-        if (x != y) parent[std::max(x, y)] = std::min(x, y);
-      }
+  // In parallel: per tet the later tets across its faces (in chunks of tets, joined in tet
+  // order), its volume and the cosine of its smallest angle. The pieces (each rooted at its first
+  // tet) and the sums per piece, taken in tet order, do not depend on the thread count.
+  constexpr int kChunks = 64;
+  std::vector<std::vector<std::pair<uint32_t, uint32_t>>> across(kChunks);
+  std::vector<double> tetVolume(n), tetCos(n);
+  parallelFor(
+      n, threads,
+      [&](size_t begin, size_t end, int chunk) {
+        auto& pairs = across[size_t(chunk)];
+        for (size_t t = begin; t < end; ++t) {
+          const auto& T = tets[t];
+          for (int k = 0; k < 4; ++k) {
+            const int32_t a = T[size_t((k + 1) % 4)], b = T[size_t((k + 2) % 4)],
+                          c = T[size_t((k + 3) % 4)];
+            for (uint32_t i = first[size_t(a)]; i < first[size_t(a) + 1]; ++i) {
+              const uint32_t s = incident[i];
+              if (s > t && holds(s, b) && holds(s, c)) pairs.push_back({uint32_t(t), s});
+            }
+          }
+          const Vec3 &A = points[size_t(T[0])], &B = points[size_t(T[1])],
+                     &C = points[size_t(T[2])], &D = points[size_t(T[3])];
+          tetVolume[t] = std::fabs(dot(cross(sub(B, A), sub(C, A)), sub(D, A))) / 6;
+          tetCos[t] = tetMaxDihedralCos(A, B, C, D);
+        }
+      },
+      kChunks);
+  for (auto& pairs : across) {
+    for (const auto& [t, s] : pairs) {
+      const uint32_t x = find(t), y = find(s);
+      if (x != y) parent[std::max(x, y)] = std::min(x, y);
     }
+    std::vector<std::pair<uint32_t, uint32_t>>().swap(pairs);
+  }
   std::vector<double> volume(n, 0), worstCos(n, -1);
   std::vector<size_t> perLabel;
   for (uint32_t t = 0; t < n; ++t) {
-    const auto& T = tets[t];
-    const Vec3 &A = points[size_t(T[0])], &B = points[size_t(T[1])], &C = points[size_t(T[2])],
-               &D = points[size_t(T[3])];
-    volume[find(t)] += std::fabs(dot(cross(sub(B, A), sub(C, A)), sub(D, A))) / 6;
-    worstCos[find(t)] = std::max(worstCos[find(t)], tetMaxDihedralCos(A, B, C, D));
+    volume[find(t)] += tetVolume[t];
+    worstCos[find(t)] = std::max(worstCos[find(t)], tetCos[t]);
     if (size_t(labels[t]) >= perLabel.size()) perLabel.resize(size_t(labels[t]) + 1, 0);
     ++perLabel[size_t(labels[t])];
   }

@@ -319,11 +319,12 @@ constexpr double kBadFragmentFactor = 10;
 /// Removes the face-connected pieces of the mesh (over all materials) lighter than `minVolume`
 /// mm^3, or lighter than `badMinVolume` when one of their tets is below `target` degrees (a
 /// floating piece no operation could mend: every face of it is outer), except a piece holding a
-/// material's last tets (and the points only they used); counts them in `r`
+/// material's last tets (and the points only they used); counts them in `r`. The search for the
+/// pieces runs on `threads` (as parallelFor); the result does not depend on it
 /// (internal/Fragments.cxx).
 void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tets,
                      std::vector<int32_t>& labels, double minVolume, double badMinVolume,
-                     double target, OptimizeResult& r);
+                     double target, int threads, OptimizeResult& r);
 
 }  // namespace optimize_detail
 }  // namespace femesher
