@@ -1,4 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
+#include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
 #include <femesher/VecMath.h>
 #include <femesher/stages/Optimize.h>
@@ -173,6 +174,9 @@ bool flatPatch(const Editor& m, int32_t v, double tolerance, Vec3& normal) {
   normal = n;
   return true;
 }
+
+/// Chunks of the scans over every tet (fixed, so that what they find comes in tet order).
+constexpr int kScanChunks = 64;
 
 /// How many times the improvement runs a round that may insert vertices (see improve).
 constexpr int kInsertingRounds = 4;
@@ -407,8 +411,20 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
   std::vector<uint32_t> queue, fresh;
   const BelowAngle belowTarget(params.targetMinDihedral);
   auto bad = [&](uint32_t t) { return belowTarget(m.qualityCos(m.tets[t])); };
-  for (uint32_t t = 0; t < tets.size(); ++t)
-    if (bad(t)) queue.push_back(t);
+  // The alive tets below the target, in order (found in parallel, in fixed chunks).
+  auto everyBadTet = [&] {
+    std::vector<std::vector<uint32_t>> found(kScanChunks);
+    parallelFor(
+        tets.size(), ctx.threads(),
+        [&](size_t begin, size_t end, int chunk) {
+          for (size_t t = begin; t < end; ++t)
+            if (m.alive[t] && bad(uint32_t(t))) found[size_t(chunk)].push_back(uint32_t(t));
+        },
+        kScanChunks);
+    queue.clear();
+    for (const auto& f : found) queue.insert(queue.end(), f.begin(), f.end());
+  };
+  everyBadTet();
   // Rounds: up to `passes` regular ones (until nothing changes), then, with insertVertices,
   // kInsertingRounds times a round that may also insert vertices (and split edges) over every tet
   // still below the target followed by a regular one over what it changed. Insertion comes last
@@ -421,11 +437,6 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
     double w = 180;
     for (uint32_t t : ts) w = std::min(w, m.quality(t));
     return w;
-  };
-  auto everyBadTet = [&] {
-    queue.clear();
-    for (uint32_t t = 0; t < tets.size(); ++t)
-      if (m.alive[t] && bad(t)) queue.push_back(t);
   };
   // `regular` regular rounds (until nothing changes), then `insertingRounds` times an inserting
   // round and a final one, over `queue`.
@@ -553,7 +564,7 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
   runRounds(params.passes, kInsertingRounds);
   // Coarsening comes last: it never lowers the worst tet of a star it changes, so the rounds'
   // result stands, and it cannot take away the interior vertices the rounds needed.
-  r.coarsenedVertices = coarsenInterior(m, params);
+  r.coarsenedVertices = coarsenInterior(m, params, ctx.threads());
   // The tets the rounds could not mend get the rounds again, now in their coarsened
   // neighbourhood, while that helps (once: colin27 10.4 -> 12.0, example_seg_dicom 12.8 -> 14.5
   // degrees). Without vertex insertion they would only be more regular rounds: those stop where
@@ -573,10 +584,19 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
   // (with the specks it cuts off) even beyond the peeling budget: a flat element is worse for a
   // solver than a small material losing a speck more (a box-sized label of 133 tets whose flat
   // corner tet held 0.6 mm^3 of specks, 0.8 % of it, in a random volume).
+  const BelowAngle belowWarning(params.minDihedralWarning);
   for (int again = 0; again < kRescueTimes && params.minDihedralWarning > 0; ++again) {
+    std::vector<std::vector<std::pair<double, uint32_t>>> found(kScanChunks);
+    parallelFor(
+        tets.size(), ctx.threads(),
+        [&](size_t begin, size_t end, int chunk) {
+          for (size_t t = begin; t < end; ++t)
+            if (m.alive[t] && belowWarning(m.qualityCos(m.tets[t])))
+              found[size_t(chunk)].emplace_back(m.quality(uint32_t(t)), uint32_t(t));
+        },
+        kScanChunks);
     std::vector<std::pair<double, uint32_t>> flat;
-    for (uint32_t t = 0; t < tets.size(); ++t)
-      if (m.alive[t] && m.quality(t) < params.minDihedralWarning) flat.emplace_back(m.quality(t), t);
+    for (const auto& f : found) flat.insert(flat.end(), f.begin(), f.end());
     std::sort(flat.begin(), flat.end());
     size_t peeled = 0;
     for (const auto& [q, t] : flat)
@@ -611,13 +631,26 @@ OptimizeResult optimizeTetMesh(std::vector<Vec3>& points, std::vector<std::array
     mn = tets.empty() ? 0 : 1e300;
     // The worst angle from the largest cosine (acos is monotone).
     const BelowAngle belowTarget(params.targetMinDihedral), below5Degrees(5);
+    std::vector<double> chunkMax(kScanChunks, -1);
+    std::vector<size_t> chunkBelow(kScanChunks, 0), chunkBelow5(kScanChunks, 0);
+    parallelFor(
+        tets.size(), ctx.threads(),
+        [&](size_t begin, size_t end, int chunk) {
+          for (size_t t = begin; t < end; ++t) {
+            const auto& T = tets[t];
+            const double c = tetMaxDihedralCos(points[size_t(T[0])], points[size_t(T[1])],
+                                               points[size_t(T[2])], points[size_t(T[3])]);
+            chunkMax[size_t(chunk)] = std::max(chunkMax[size_t(chunk)], c);
+            chunkBelow[size_t(chunk)] += belowTarget(c);
+            chunkBelow5[size_t(chunk)] += below5Degrees(c);
+          }
+        },
+        kScanChunks);
     double cMax = -1;
-    for (const auto& T : tets) {
-      const double c = tetMaxDihedralCos(points[size_t(T[0])], points[size_t(T[1])],
-                                         points[size_t(T[2])], points[size_t(T[3])]);
-      cMax = std::max(cMax, c);
-      below += belowTarget(c);
-      below5 += below5Degrees(c);
+    for (int c = 0; c < kScanChunks; ++c) {
+      cMax = std::max(cMax, chunkMax[size_t(c)]);
+      below += chunkBelow[size_t(c)];
+      below5 += chunkBelow5[size_t(c)];
     }
     if (!tets.empty()) mn = std::max(0.0, cosToDegrees(cMax));
   };

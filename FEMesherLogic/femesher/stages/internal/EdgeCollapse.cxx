@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Optimize stage: collapse of a bad tet's edge (short, or checked against the facet distance)
 // and interior coarsening (see collapseEdge and coarsenInterior in OptimizeEditor.h).
+#include <femesher/Parallel.h>
 #include <femesher/VecMath.h>
 #include <femesher/stages/internal/OptimizeEditor.h>
 
@@ -278,31 +279,42 @@ bool removeInteriorVertex(Editor& m, int32_t v, const OptimizeParameters& p, int
 
 }  // namespace
 
-size_t coarsenInterior(Editor& m, const OptimizeParameters& p) {
+size_t coarsenInterior(Editor& m, const OptimizeParameters& p, int threads) {
   if (!(p.coarsenMinDihedral > 0) || !p.sizeAt) return 0;
   size_t removed = 0;
+  constexpr int kChunks = 64;  // fixed: the candidates come in vertex order
   // Collapsing an interior vertex changes no interface or outer face: which vertices are interior
   // is known once for all sweeps.
   std::vector<char> interior(m.pts.size(), 0);
-  for (int32_t v = 0; v < int32_t(m.pts.size()); ++v)
-    interior[size_t(v)] = !m.around[size_t(v)].empty() && !m.fixedVertex(v);
+  parallelFor(m.pts.size(), threads, [&](size_t begin, size_t end, int) {
+    std::vector<std::array<int32_t, 2>> scratch;
+    for (size_t v = begin; v < end; ++v)
+      interior[v] = !m.around[v].empty() && !m.computeFixed(int32_t(v), scratch);
+  });
   // The first sweep looks at every interior vertex, later ones at the neighbours of a removal.
   std::vector<char> look = interior, touched(m.pts.size(), 0), receiver(m.pts.size(), 0);
   std::vector<int32_t> nbrs;
   for (int sweep = 0; sweep < 2; ++sweep) {
     // Interior vertices with an edge shorter than coarsenShortEdge × size, shortest first.
+    std::vector<std::vector<std::pair<double, int32_t>>> found(kChunks);
+    parallelFor(
+        m.pts.size(), threads,
+        [&](size_t begin, size_t end, int chunk) {
+          for (int32_t v = int32_t(begin); v < int32_t(end); ++v) {
+            if (!look[size_t(v)] || !interior[size_t(v)] || m.around[size_t(v)].empty()) continue;
+            const Vec3& pv = m.pts[size_t(v)];
+            const double h = p.sizeAt(pv);
+            if (!(h > 0)) continue;
+            double shortest = 1e300;
+            for (uint32_t s : m.around[size_t(v)])
+              for (int32_t w : m.tets[s])
+                if (w != v) shortest = std::min(shortest, norm(sub(m.pts[size_t(w)], pv)) / h);
+            if (shortest < p.coarsenShortEdge) found[size_t(chunk)].emplace_back(shortest, v);
+          }
+        },
+        kChunks);
     std::vector<std::pair<double, int32_t>> order;
-    for (int32_t v = 0; v < int32_t(m.pts.size()); ++v) {
-      if (!look[size_t(v)] || !interior[size_t(v)] || m.around[size_t(v)].empty()) continue;
-      const Vec3& pv = m.pts[size_t(v)];
-      const double h = p.sizeAt(pv);
-      if (!(h > 0)) continue;
-      double shortest = 1e300;
-      for (uint32_t s : m.around[size_t(v)])
-        for (int32_t w : m.tets[s])
-          if (w != v) shortest = std::min(shortest, norm(sub(m.pts[size_t(w)], pv)) / h);
-      if (shortest < p.coarsenShortEdge) order.emplace_back(shortest, v);
-    }
+    for (const auto& f : found) order.insert(order.end(), f.begin(), f.end());
     std::sort(order.begin(), order.end());
     size_t done = 0;
     for (const auto& [ratio, v] : order) {

@@ -186,55 +186,69 @@ void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 
                      double target, int threads, OptimizeResult& r) {
   const size_t n = tets.size();
   if (n == 0) return;
-  // Union-find over tets sharing a face; each piece's root is its first tet. A face's other tets
-  // are found among the tets of its first vertex (vertex -> tets in compressed rows): no sort of
-  // the 4 n faces.
+  // Union-find over tets sharing a face; each piece's root is its first tet. Each face is found
+  // at its smallest vertex: the faces of that vertex's tets whose other two vertices are larger,
+  // sorted by those two (vertex -> tets in compressed rows: no sort of the 4 n faces, and each
+  // vertex's tets read once).
   std::vector<uint32_t> parent(n);
   std::iota(parent.begin(), parent.end(), 0u);
   auto find = [&](uint32_t x) {
     while (parent[x] != x) x = parent[x] = parent[parent[x]];
     return x;
   };
-  std::vector<uint32_t> first(points.size() + 1, 0), incident(4 * n);
+  const size_t np = points.size();
+  std::vector<uint32_t> first(np + 1, 0), incident(4 * n);
   for (const auto& T : tets)
     for (int32_t v : T) ++first[size_t(v) + 1];
-  for (size_t v = 0; v < points.size(); ++v) first[v + 1] += first[v];
+  for (size_t v = 0; v < np; ++v) first[v + 1] += first[v];
   {
     std::vector<uint32_t> fill(first.begin(), first.end() - 1);
     for (uint32_t t = 0; t < n; ++t)
       for (int32_t v : tets[t]) incident[fill[size_t(v)]++] = t;
   }
-  auto holds = [&](uint32_t s, int32_t v) {
-    const auto& S = tets[s];
-    return S[0] == v || S[1] == v || S[2] == v || S[3] == v;
-  };
-  // In parallel: per tet the later tets across its faces (in chunks of tets, joined in tet
-  // order), its volume and the cosine of its smallest angle. The pieces (each rooted at its first
-  // tet) and the sums per piece, taken in tet order, do not depend on the thread count.
+  // In parallel: per vertex the pairs of tets sharing a face whose smallest vertex it is (in
+  // chunks of vertices, joined in vertex order), per tet its volume and the cosine of its
+  // smallest angle. The pieces (each rooted at its first tet, whatever order the unions come in)
+  // and the sums per piece, taken in tet order, do not depend on the thread count.
   constexpr int kChunks = 64;
   std::vector<std::vector<std::pair<uint32_t, uint32_t>>> across(kChunks);
-  std::vector<double> tetVolume(n), tetCos(n);
   parallelFor(
-      n, threads,
+      np, threads,
       [&](size_t begin, size_t end, int chunk) {
         auto& pairs = across[size_t(chunk)];
-        for (size_t t = begin; t < end; ++t) {
-          const auto& T = tets[t];
-          for (int k = 0; k < 4; ++k) {
-            const int32_t a = T[size_t((k + 1) % 4)], b = T[size_t((k + 2) % 4)],
-                          c = T[size_t((k + 3) % 4)];
-            for (uint32_t i = first[size_t(a)]; i < first[size_t(a) + 1]; ++i) {
-              const uint32_t s = incident[i];
-              if (s > t && holds(s, b) && holds(s, c)) pairs.push_back({uint32_t(t), s});
+        std::vector<std::pair<std::array<int32_t, 2>, uint32_t>> keys;
+        for (size_t a = begin; a < end; ++a) {
+          keys.clear();
+          for (uint32_t i = first[a]; i < first[a + 1]; ++i) {
+            const uint32_t t = incident[i];
+            const auto& T = tets[t];
+            for (int k = 0; k < 4; ++k) {  // the faces of t holding a: opposite another vertex
+              if (T[size_t(k)] == int32_t(a)) continue;
+              std::array<int32_t, 2> o{};
+              int m = 0;
+              for (int c = 0; c < 4; ++c)
+                if (c != k && T[size_t(c)] != int32_t(a)) o[size_t(m++)] = T[size_t(c)];
+              if (o[0] > o[1]) std::swap(o[0], o[1]);
+              if (o[0] > int32_t(a)) keys.push_back({o, t});
             }
           }
-          const Vec3 &A = points[size_t(T[0])], &B = points[size_t(T[1])],
-                     &C = points[size_t(T[2])], &D = points[size_t(T[3])];
-          tetVolume[t] = std::fabs(dot(cross(sub(B, A), sub(C, A)), sub(D, A))) / 6;
-          tetCos[t] = tetMaxDihedralCos(A, B, C, D);
+          std::sort(keys.begin(), keys.end());
+          for (size_t x = 0; x + 1 < keys.size(); ++x)
+            for (size_t y = x + 1; y < keys.size() && keys[y].first == keys[x].first; ++y)
+              pairs.push_back({keys[x].second, keys[y].second});
         }
       },
       kChunks);
+  std::vector<double> tetVolume(n), tetCos(n);
+  parallelFor(n, threads, [&](size_t begin, size_t end, int) {
+    for (size_t t = begin; t < end; ++t) {
+      const auto& T = tets[t];
+      const Vec3 &A = points[size_t(T[0])], &B = points[size_t(T[1])], &C = points[size_t(T[2])],
+                 &D = points[size_t(T[3])];
+      tetVolume[t] = std::fabs(dot(cross(sub(B, A), sub(C, A)), sub(D, A))) / 6;
+      tetCos[t] = tetMaxDihedralCos(A, B, C, D);
+    }
+  });
   for (auto& pairs : across) {
     for (const auto& [t, s] : pairs) {
       const uint32_t x = find(t), y = find(s);
@@ -242,6 +256,8 @@ void removeFragments(std::vector<Vec3>& points, std::vector<std::array<int32_t, 
     }
     std::vector<std::pair<uint32_t, uint32_t>>().swap(pairs);
   }
+  std::vector<uint32_t>().swap(incident);
+  std::vector<uint32_t>().swap(first);
   std::vector<double> volume(n, 0), worstCos(n, -1);
   std::vector<size_t> perLabel;
   for (uint32_t t = 0; t < n; ++t) {

@@ -150,6 +150,13 @@ class Editor {
   bool fixedVertex(int32_t v) {
     int8_t& st = fixedState[size_t(v)];
     if (st >= 0) return st == 1;
+    st = computeFixed(v, starFaces) ? 1 : 0;
+    return st == 1;
+  }
+  /// fixedVertex's answer, the cache aside (`starFaces`: the caller's scratch), so that several
+  /// threads may ask at once.
+  bool computeFixed(int32_t v, std::vector<std::array<int32_t, 2>>& starFaces) const {
+    if (fixedState[size_t(v)] >= 0) return fixedState[size_t(v)] == 1;
     // The faces holding v, as their two other vertices: each must be held by exactly two of v's
     // tets, of one material (one pass over the star instead of a search per face).
     const auto& star = around[size_t(v)];
@@ -171,8 +178,7 @@ class Editor {
     for (size_t i = 0; paired && i < starFaces.size(); i += 2)
       paired = starFaces[i] == starFaces[i + 1] &&
                (i + 2 >= starFaces.size() || starFaces[i + 2] != starFaces[i]);
-    st = paired ? 0 : 1;
-    return st == 1;
+    return !paired;
   }
   void relabel(uint32_t t, int32_t label) {
     for (int32_t v : tets[t]) fixedState[size_t(v)] = -1;
@@ -276,9 +282,10 @@ bool starWithinFacetDistance(const Editor& m, const OptimizeInterfaces& interfac
 /// Interior coarsening (OptimizeParameters::coarsenMinDihedral): removes interior vertices by
 /// collapsing each onto the neighbour that leaves the best worst tet, shortest edges relative to
 /// the target size first, in two sweeps (the second over the neighbours of a removal); the
-/// vertices that received a collapse are smoothed after each. Returns how many vertices went
-/// (internal/EdgeCollapse.cxx).
-size_t coarsenInterior(Editor& m, const OptimizeParameters& params);
+/// vertices that received a collapse are smoothed after each. Which vertices are interior, and
+/// which have short edges, is found on `threads` (as parallelFor; the result does not depend on
+/// it). Returns how many vertices went (internal/EdgeCollapse.cxx).
+size_t coarsenInterior(Editor& m, const OptimizeParameters& params, int threads);
 
 /// Distance (mm) from the centroid of triangle `f` to the smooth interface of materials a < b
 /// (0: the background); -1 when the projection fails (InterfaceSmoothing.cxx).
