@@ -55,6 +55,15 @@ class BrickGrid {
     out[7] = p[sz + sy + 1];
     return true;
   }
+  /// The 8 samples of the cell whose lowest corner is (x, y, z), x fastest, when the cell lies
+  /// inside the grid (in one brick or across bricks); false (nothing written) otherwise.
+  bool cellInGrid(int x, int y, int z, double out[8]) const {
+    if (cell(x, y, z, out)) return true;
+    if (x < 0 || y < 0 || z < 0 || x + 1 >= dims_[0] || y + 1 >= dims_[1] || z + 1 >= dims_[2])
+      return false;
+    for (int c = 0; c < 8; ++c) out[c] = at(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1));
+    return true;
+  }
   /// The dense samples again (x fastest).
   std::vector<float> dense(int threads) const;
   /// Bricks that hold their samples (the others hold one value each).

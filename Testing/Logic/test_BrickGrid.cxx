@@ -43,13 +43,20 @@ TEST(BrickGrid, ReadsEveryDenseValueBitForBit) {
   const std::vector<float> dense = field(d);
   const BrickGrid g(dense, d, 2);
   EXPECT_EQ(g.dims(), d);
-  size_t differing = 0, cells = 0, cellDiffering = 0;
+  size_t differing = 0, cells = 0, cellDiffering = 0, inGridCells = 0;
   for (int z = 0; z < d[2]; ++z)
     for (int y = 0; y < d[1]; ++y)
       for (int x = 0; x < d[0]; ++x) {
         const size_t i = size_t(x) + size_t(d[0]) * (size_t(y) + size_t(d[1]) * size_t(z));
         differing += !sameBits(g.at(x, y, z), dense[i]);
-        double c[8];
+        double c[8], any[8];
+        const bool inGrid = x + 1 < d[0] && y + 1 < d[1] && z + 1 < d[2];
+        inGridCells += g.cellInGrid(x, y, z, any);
+        if (inGrid)
+          for (int k = 0; k < 8; ++k)
+            cellDiffering += any[k] != double(dense[size_t(x + (k & 1)) +
+                                                    size_t(d[0]) * (size_t(y + ((k >> 1) & 1)) +
+                                                                    size_t(d[1]) * size_t(z + ((k >> 2) & 1)))]);
         if (!g.cell(x, y, z, c)) continue;
         ++cells;
         for (int k = 0; k < 8; ++k)
@@ -65,10 +72,15 @@ TEST(BrickGrid, ReadsEveryDenseValueBitForBit) {
     expected *= size_t(n);
   }
   EXPECT_EQ(cells, expected);
+  // cellInGrid: every cell inside the grid, across bricks too.
+  EXPECT_EQ(inGridCells, size_t(d[0] - 1) * size_t(d[1] - 1) * size_t(d[2] - 1));
   double out[8];
   EXPECT_FALSE(g.cell(-1, 0, 0, out));
   EXPECT_FALSE(g.cell(d[0] - 1, 0, 0, out));
   EXPECT_FALSE(g.cell(7, 0, 0, out));
+  EXPECT_TRUE(g.cellInGrid(7, 0, 0, out));
+  EXPECT_FALSE(g.cellInGrid(d[0] - 1, 0, 0, out));
+  EXPECT_FALSE(g.cellInGrid(0, -1, 0, out));
   // -0 and +0 are different bits: brick (0, 0, 0) is stored, and reads them back as they were.
   EXPECT_TRUE(std::signbit(g.at(1, 0, 0)));
   EXPECT_FALSE(std::signbit(g.at(0, 0, 0)));

@@ -287,7 +287,7 @@ float IndicatorField::valueRaw(int m, int i, int j, int k) const {
 void IndicatorField::corners(int m, int i, int j, int k, double out[8]) const {
   const Box& b = boxes_[m];
   const int x = i - b.lo[0], y = j - b.lo[1], z = k - b.lo[2];
-  if (b.f.cell(x, y, z, out)) return;  // the cell lies in the box and in one brick
+  if (b.f.cellInGrid(x, y, z, out)) return;  // the cell lies in the box
   for (int c = 0; c < 8; ++c) out[c] = valueRaw(m, i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1));
 }
 

@@ -68,17 +68,19 @@ struct Surface {
   bool project(int a, int b, Vec3& l) const {
     const double tol = 1e-4 * smin;
     for (int it = 0; it < 10; ++it) {
-      const double F = f.eval(a, l) - f.eval(b, l);
+      Vec3 ga, gb;  // f's value and gradient from one lookup of the cell
+      const double fab = f.evalGradient(a, l, ga);
+      const double F = fab - f.evalGradient(b, l, gb);
       if (std::fabs(F) < tol) {
         int cand[8];
         const int nc = f.cornerLabels(l, cand);
         if (nc <= 2) return true;
-        const double fab = f.eval(a, l);
         for (int c = 0; c < nc; ++c)
           if (cand[c] != a && cand[c] != b && f.eval(cand[c], l) > fab + 10 * tol) return false;
         return true;
       }
-      const Vec3 g = grad(a, b, l);
+      const Vec3 g{(ga[0] - gb[0]) / vol.spacing[0], (ga[1] - gb[1]) / vol.spacing[1],
+                   (ga[2] - gb[2]) / vol.spacing[2]};  // grad(a, b, l)
       const double g2 = dot(g, g);
       if (g2 < 1e-20) return false;
       Vec3 step{-F * g[0] / g2, -F * g[1] / g2, -F * g[2] / g2};

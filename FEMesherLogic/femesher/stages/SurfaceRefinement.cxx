@@ -720,12 +720,12 @@ size_t refineVoxelCentres(const IndicatorField& field, LabelledDelaunay& delauna
             Vec3 l{double(i), double(j), double(k)};
             bool ok = false;
             for (int it = 0; it < 20; ++it) {
-              const double F = field.eval(a, l) - field.eval(b, l);
+              Vec3 ga, gb;  // f's value and gradient from one lookup of the cell
+              const double F = field.evalGradient(a, l, ga) - field.evalGradient(b, l, gb);
               if (std::fabs(F) < 1e-4 * smin) {
                 ok = true;
                 break;
               }
-              const Vec3 ga = field.gradient(a, l), gb = field.gradient(b, l);
               const Vec3 g{(ga[0] - gb[0]) / vol.spacing[0], (ga[1] - gb[1]) / vol.spacing[1],
                            (ga[2] - gb[2]) / vol.spacing[2]};
               const double g2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
