@@ -7,9 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <map>
 #include <random>
-#include <set>
 
 namespace femesher {
 
@@ -79,26 +77,39 @@ double junctionsOnTripleEdges(const BoundarySurface& s, const PreprocessedVolume
                               const std::vector<Vec3>& particlesLocal, size_t junctionCount,
                               RunContext& ctx) {
   if (junctionCount == 0) return 1.0;
-  std::map<Vec3, int32_t> vid;
-  for (size_t i = 0; i < s.points.size(); ++i) vid.emplace(s.points[i], int32_t(i));
-  std::map<std::pair<int32_t, int32_t>, std::set<int>> edgeMaterials;
+  // Per surface vertex: the most materials an edge of it separates (the edges' materials from
+  // the triangles' pairs, sorted: no map of sets).
+  std::vector<std::array<int32_t, 3>> edgeMaterial;  // (a, b, material), a < b
+  edgeMaterial.reserve(6 * s.triangles.size());
   for (size_t t = 0; t < s.triangles.size(); ++t)
     for (int e = 0; e < 3; ++e) {
       int32_t a = s.triangles[t][e], b = s.triangles[t][(e + 1) % 3];
       if (a > b) std::swap(a, b);
-      auto& m = edgeMaterials[{a, b}];
-      m.insert(s.trianglePairs[t].first);
-      m.insert(s.trianglePairs[t].second);
+      edgeMaterial.push_back({a, b, s.trianglePairs[t].first});
+      edgeMaterial.push_back({a, b, s.trianglePairs[t].second});
     }
+  std::sort(edgeMaterial.begin(), edgeMaterial.end());
   std::vector<size_t> best(s.points.size(), 0);
-  for (const auto& [e, m] : edgeMaterials) {
-    best[size_t(e.first)] = std::max(best[size_t(e.first)], m.size());
-    best[size_t(e.second)] = std::max(best[size_t(e.second)], m.size());
+  for (size_t i = 0; i < edgeMaterial.size();) {
+    size_t j = i, distinct = 0;
+    for (; j < edgeMaterial.size() && edgeMaterial[j][0] == edgeMaterial[i][0] &&
+           edgeMaterial[j][1] == edgeMaterial[i][1];
+         ++j)
+      distinct += j == i || edgeMaterial[j][2] != edgeMaterial[j - 1][2];
+    for (int32_t v : {edgeMaterial[i][0], edgeMaterial[i][1]})
+      best[size_t(v)] = std::max(best[size_t(v)], distinct);
+    i = j;
   }
+  // The surface vertex at a junction particle's position (the first of equal positions).
+  std::vector<std::pair<Vec3, int32_t>> at;
+  at.reserve(s.points.size());
+  for (size_t i = 0; i < s.points.size(); ++i) at.push_back({s.points[i], int32_t(i)});
+  std::sort(at.begin(), at.end());
   size_t ok = 0, notVertex = 0;
   for (size_t j = 0; j < junctionCount && j < particlesLocal.size(); ++j) {
-    auto it = vid.find(vol.localToCanonical(particlesLocal[j]));
-    if (it == vid.end())
+    const Vec3 p = vol.localToCanonical(particlesLocal[j]);
+    const auto it = std::lower_bound(at.begin(), at.end(), std::make_pair(p, int32_t(-1)));
+    if (it == at.end() || it->first != p)
       ++notVertex;
     else if (best[size_t(it->second)] >= 3)
       ++ok;
