@@ -34,34 +34,18 @@ class BrickGrid {
   /// The 8 samples of the cell whose lowest corner is (x, y, z), x fastest, when the cell lies
   /// inside the grid and inside one brick; false (nothing written) otherwise.
   bool cell(int x, int y, int z, double out[8]) const {
-    if (x < 0 || y < 0 || z < 0 || x + 1 >= dims_[0] || y + 1 >= dims_[1] || z + 1 >= dims_[2] ||
-        (x & kMask) == kMask || (y & kMask) == kMask || (z & kMask) == kMask)
-      return false;
-    const size_t b = brickOf(x, y, z);
-    const uint32_t s = slot_[b];
-    if (s == kUniform) {
-      for (int c = 0; c < 8; ++c) out[c] = uniform_[b];
-      return true;
-    }
-    constexpr size_t sy = kBrick, sz = size_t(kBrick) * kBrick;
-    const float* p = &samples_[size_t(s) * kBrickSamples + inBrick(x, y, z)];
-    out[0] = p[0];
-    out[1] = p[1];
-    out[2] = p[sy];
-    out[3] = p[sy + 1];
-    out[4] = p[sz];
-    out[5] = p[sz + 1];
-    out[6] = p[sz + sy];
-    out[7] = p[sz + sy + 1];
+    if (!cellInside(x, y, z) || crossesBricks(x, y, z)) return false;
+    cellOfOneBrick(x, y, z, out);
     return true;
   }
   /// The 8 samples of the cell whose lowest corner is (x, y, z), x fastest, when the cell lies
   /// inside the grid (in one brick or across bricks); false (nothing written) otherwise.
   bool cellInGrid(int x, int y, int z, double out[8]) const {
-    if (cell(x, y, z, out)) return true;
-    if (x < 0 || y < 0 || z < 0 || x + 1 >= dims_[0] || y + 1 >= dims_[1] || z + 1 >= dims_[2])
-      return false;
-    for (int c = 0; c < 8; ++c) out[c] = at(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1));
+    if (!cellInside(x, y, z)) return false;
+    if (!crossesBricks(x, y, z))
+      cellOfOneBrick(x, y, z, out);
+    else
+      for (int c = 0; c < 8; ++c) out[c] = at(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1));
     return true;
   }
   /// The dense samples again (x fastest).
@@ -75,6 +59,31 @@ class BrickGrid {
 
  private:
   static constexpr uint32_t kUniform = 0xffffffffu;
+  bool cellInside(int x, int y, int z) const {
+    return x >= 0 && y >= 0 && z >= 0 && x + 1 < dims_[0] && y + 1 < dims_[1] && z + 1 < dims_[2];
+  }
+  static bool crossesBricks(int x, int y, int z) {
+    return (x & kMask) == kMask || (y & kMask) == kMask || (z & kMask) == kMask;
+  }
+  /// cell() for a cell inside the grid and one brick.
+  void cellOfOneBrick(int x, int y, int z, double out[8]) const {
+    const size_t b = brickOf(x, y, z);
+    const uint32_t s = slot_[b];
+    if (s == kUniform) {
+      for (int c = 0; c < 8; ++c) out[c] = uniform_[b];
+      return;
+    }
+    constexpr size_t sy = kBrick, sz = size_t(kBrick) * kBrick;
+    const float* p = &samples_[size_t(s) * kBrickSamples + inBrick(x, y, z)];
+    out[0] = p[0];
+    out[1] = p[1];
+    out[2] = p[sy];
+    out[3] = p[sy + 1];
+    out[4] = p[sz];
+    out[5] = p[sz + 1];
+    out[6] = p[sz + sy];
+    out[7] = p[sz + sy + 1];
+  }
   size_t brickOf(int x, int y, int z) const {
     return size_t(x >> kBits) +
            size_t(bricks_[0]) * (size_t(y >> kBits) + size_t(bricks_[1]) * size_t(z >> kBits));

@@ -68,4 +68,24 @@ void parallelFor(size_t n, int threads, Body&& body, int chunks = 0) {
   parallelForChunks(n, threads, chunks, ChunkBodyRef(ref));
 }
 
+/// Runs body(begin, end, out) on `chunks` contiguous sub-ranges of [0, n) as parallelFor does,
+/// each appending what it finds to its own vector `out`, and returns those vectors joined in range
+/// order: the same list, in the same order, on any thread count.
+template <class T, class Body>
+std::vector<T> parallelCollect(size_t n, int threads, int chunks, Body&& body) {
+  std::vector<std::vector<T>> parts(size_t(std::max(1, chunks)));
+  parallelFor(
+      n, threads, [&](size_t begin, size_t end, int chunk) { body(begin, end, parts[size_t(chunk)]); },
+      chunks);
+  size_t total = 0;
+  for (const auto& p : parts) total += p.size();
+  std::vector<T> out;
+  out.reserve(total);
+  for (auto& p : parts) {
+    out.insert(out.end(), p.begin(), p.end());
+    std::vector<T>().swap(p);
+  }
+  return out;
+}
+
 }  // namespace femesher

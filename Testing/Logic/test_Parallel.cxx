@@ -70,6 +70,24 @@ TEST(Parallel, ChunkRangesAndIndicesIndependentOfThreads) {
   EXPECT_EQ(at, 100000u);
 }
 
+// parallelCollect joins what each chunk found in range order: the same list on any thread count
+// and chunk count, whatever order the chunks ran in.
+TEST(Parallel, CollectJoinsTheChunksInRangeOrder) {
+  std::vector<size_t> expected;
+  for (size_t i = 0; i < 10000; ++i)
+    if (i % 7 == 3) expected.push_back(i);
+  for (int threads : {1, 2, 4})
+    for (int chunks : {1, 5, 64}) {
+      const std::vector<size_t> got = parallelCollect<size_t>(
+          10000, threads, chunks, [](size_t begin, size_t end, std::vector<size_t>& out) {
+            for (size_t i = begin; i < end; ++i)
+              if (i % 7 == 3) out.push_back(i);
+          });
+      EXPECT_EQ(got, expected) << threads << " threads, " << chunks << " chunks";
+    }
+  EXPECT_TRUE((parallelCollect<int>(0, 2, 4, [](size_t, size_t, std::vector<int>&) {})).empty());
+}
+
 TEST(Parallel, FirstExceptionIsRethrown) {
   for (int threads : {1, 2, 4}) {
     std::atomic_int ran{0};

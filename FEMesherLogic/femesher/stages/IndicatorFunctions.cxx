@@ -331,13 +331,6 @@ double IndicatorField::evalRaw(int m, const Vec3& l) const {
   return interpolate(f, c);
 }
 
-Vec3 IndicatorField::gradientRaw(int m, const Vec3& l) const {
-  const CellPlace c = placeOf(l);
-  double f[8];
-  corners(m, c.i, c.j, c.k, f);
-  return interpolateGradient(f, c);
-}
-
 double IndicatorField::boxDistance(const Vec3& l, Vec3* grad) const {
   const Vec3& s = vol_->spacing;
   double out2 = 0, inside = std::numeric_limits<double>::infinity();
@@ -405,13 +398,8 @@ double IndicatorField::eval(int m, const Vec3& l) const {
 
 Vec3 IndicatorField::gradient(int m, const Vec3& l) const {
   Vec3 g;
-  const double f = evalRaw(m, l), d = boxDistance(l, &g);
-  if (m == 0 ? d > f : -d < f) {  // the box is the active branch
-    if (m != 0)
-      for (double& x : g) x = -x;
-    return g;
-  }
-  return gradientRaw(m, l);
+  evalGradient(m, l, g);
+  return g;
 }
 
 double IndicatorField::evalGradient(int m, const Vec3& l, Vec3& grad) const {
@@ -419,7 +407,7 @@ double IndicatorField::evalGradient(int m, const Vec3& l, Vec3& grad) const {
   double corner[8];
   corners(m, c.i, c.j, c.k, corner);
   const double f = interpolate(corner, c), d = boxDistance(l, &grad);
-  if (m == 0 ? d > f : -d < f) {  // the box is the active branch (as gradient)
+  if (m == 0 ? d > f : -d < f) {  // the box is the active branch
     if (m != 0)
       for (double& x : grad) x = -x;
   } else {

@@ -78,8 +78,8 @@ class IndicatorField {
   /// edge or a corner (a particle on a corner of CGAL's 20012323 saw its normal flip between
   /// two faces' from one iteration to the next and its neighbours never settled).
   Vec3 gradient(int m, const Vec3& l) const;
-  /// eval and gradient together (exactly their values, one lookup of the cell): f_m, its gradient
-  /// in `grad`.
+  /// eval and gradient together (one lookup of the cell): f_m, its gradient in `grad` (gradient
+  /// is this, without the value).
   double evalGradient(int m, const Vec3& l, Vec3& grad) const;
   /// `l` moved exactly onto the input's box when it lies within `tolerance` mm of it (clamped
   /// into the box, then onto the nearest face), else unchanged. Projections onto the box faces
@@ -103,7 +103,6 @@ class IndicatorField {
   /// The stored samples and their trilinear interpolant, before the box clip.
   float valueRaw(int m, int i, int j, int k) const;
   double evalRaw(int m, const Vec3& l) const;
-  Vec3 gradientRaw(int m, const Vec3& l) const;
   /// The cell of l (lowest corner) and l's place in it.
   struct CellPlace {
     int i, j, k;

@@ -19,15 +19,16 @@ struct Eval {
   const PreprocessedVolume& vol;
   double value(int m, const Vec3& l) const { return f.eval(m, l); }
   /// Gradient with respect to canonical coordinates (mm).
-  Vec3 grad(int m, const Vec3& l) const {
-    const Vec3 g = f.gradient(m, l);
-    return {g[0] / vol.spacing[0], g[1] / vol.spacing[1], g[2] / vol.spacing[2]};
-  }
+  Vec3 grad(int m, const Vec3& l) const { return perMm(f.gradient(m, l)); }
   /// value and grad together (one lookup of the cell).
   double valueGrad(int m, const Vec3& l, Vec3& g) const {
     const double v = f.evalGradient(m, l, g);
-    g = {g[0] / vol.spacing[0], g[1] / vol.spacing[1], g[2] / vol.spacing[2]};
+    g = perMm(g);
     return v;
+  }
+  /// A gradient per local index unit, per mm.
+  Vec3 perMm(const Vec3& g) const {
+    return {g[0] / vol.spacing[0], g[1] / vol.spacing[1], g[2] / vol.spacing[2]};
   }
   Vec3 moveLocal(const Vec3& l, const Vec3& dc) const {  // add a canonical displacement
     return {l[0] + dc[0] / vol.spacing[0], l[1] + dc[1] / vol.spacing[1], l[2] + dc[2] / vol.spacing[2]};

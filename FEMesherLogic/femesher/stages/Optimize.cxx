@@ -413,16 +413,12 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
   auto bad = [&](uint32_t t) { return belowTarget(m.qualityCos(m.tets[t])); };
   // The alive tets below the target, in order (found in parallel, in fixed chunks).
   auto everyBadTet = [&] {
-    std::vector<std::vector<uint32_t>> found(kScanChunks);
-    parallelFor(
-        tets.size(), ctx.threads(),
-        [&](size_t begin, size_t end, int chunk) {
+    queue = parallelCollect<uint32_t>(
+        tets.size(), ctx.threads(), kScanChunks,
+        [&](size_t begin, size_t end, std::vector<uint32_t>& found) {
           for (size_t t = begin; t < end; ++t)
-            if (m.alive[t] && bad(uint32_t(t))) found[size_t(chunk)].push_back(uint32_t(t));
-        },
-        kScanChunks);
-    queue.clear();
-    for (const auto& f : found) queue.insert(queue.end(), f.begin(), f.end());
+            if (m.alive[t] && bad(uint32_t(t))) found.push_back(uint32_t(t));
+        });
   };
   everyBadTet();
   // Rounds: up to `passes` regular ones (until nothing changes), then, with insertVertices,
@@ -586,17 +582,13 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
   // corner tet held 0.6 mm^3 of specks, 0.8 % of it, in a random volume).
   const BelowAngle belowWarning(params.minDihedralWarning);
   for (int again = 0; again < kRescueTimes && params.minDihedralWarning > 0; ++again) {
-    std::vector<std::vector<std::pair<double, uint32_t>>> found(kScanChunks);
-    parallelFor(
-        tets.size(), ctx.threads(),
-        [&](size_t begin, size_t end, int chunk) {
+    auto flat = parallelCollect<std::pair<double, uint32_t>>(
+        tets.size(), ctx.threads(), kScanChunks,
+        [&](size_t begin, size_t end, std::vector<std::pair<double, uint32_t>>& found) {
           for (size_t t = begin; t < end; ++t)
             if (m.alive[t] && belowWarning(m.qualityCos(m.tets[t])))
-              found[size_t(chunk)].emplace_back(m.quality(uint32_t(t)), uint32_t(t));
-        },
-        kScanChunks);
-    std::vector<std::pair<double, uint32_t>> flat;
-    for (const auto& f : found) flat.insert(flat.end(), f.begin(), f.end());
+              found.emplace_back(m.quality(uint32_t(t)), uint32_t(t));
+        });
     std::sort(flat.begin(), flat.end());
     size_t peeled = 0;
     for (const auto& [q, t] : flat)

@@ -53,7 +53,10 @@ struct Surface {
   Vec3 toLocal(const Vec3& c) const { return vol.canonicalToLocal(c); }
   /// grad (f_a - f_b) in canonical coordinates
   Vec3 grad(int a, int b, const Vec3& l) const {
-    const Vec3 ga = f.gradient(a, l), gb = f.gradient(b, l);
+    return difference(f.gradient(a, l), f.gradient(b, l));
+  }
+  /// ga - gb (per local index unit) in canonical coordinates
+  Vec3 difference(const Vec3& ga, const Vec3& gb) const {
     return {(ga[0] - gb[0]) / vol.spacing[0], (ga[1] - gb[1]) / vol.spacing[1],
             (ga[2] - gb[2]) / vol.spacing[2]};
   }
@@ -79,8 +82,7 @@ struct Surface {
           if (cand[c] != a && cand[c] != b && f.eval(cand[c], l) > fab + 10 * tol) return false;
         return true;
       }
-      const Vec3 g{(ga[0] - gb[0]) / vol.spacing[0], (ga[1] - gb[1]) / vol.spacing[1],
-                   (ga[2] - gb[2]) / vol.spacing[2]};  // grad(a, b, l)
+      const Vec3 g = difference(ga, gb);  // grad(a, b, l)
       const double g2 = dot(g, g);
       if (g2 < 1e-20) return false;
       Vec3 step{-F * g[0] / g2, -F * g[1] / g2, -F * g[2] / g2};

@@ -296,10 +296,9 @@ size_t coarsenInterior(Editor& m, const OptimizeParameters& p, int threads) {
   std::vector<int32_t> nbrs;
   for (int sweep = 0; sweep < 2; ++sweep) {
     // Interior vertices with an edge shorter than coarsenShortEdge × size, shortest first.
-    std::vector<std::vector<std::pair<double, int32_t>>> found(kChunks);
-    parallelFor(
-        m.pts.size(), threads,
-        [&](size_t begin, size_t end, int chunk) {
+    auto order = parallelCollect<std::pair<double, int32_t>>(
+        m.pts.size(), threads, kChunks,
+        [&](size_t begin, size_t end, std::vector<std::pair<double, int32_t>>& found) {
           for (int32_t v = int32_t(begin); v < int32_t(end); ++v) {
             if (!look[size_t(v)] || !interior[size_t(v)] || m.around[size_t(v)].empty()) continue;
             const Vec3& pv = m.pts[size_t(v)];
@@ -309,12 +308,9 @@ size_t coarsenInterior(Editor& m, const OptimizeParameters& p, int threads) {
             for (uint32_t s : m.around[size_t(v)])
               for (int32_t w : m.tets[s])
                 if (w != v) shortest = std::min(shortest, norm(sub(m.pts[size_t(w)], pv)) / h);
-            if (shortest < p.coarsenShortEdge) found[size_t(chunk)].emplace_back(shortest, v);
+            if (shortest < p.coarsenShortEdge) found.emplace_back(shortest, v);
           }
-        },
-        kChunks);
-    std::vector<std::pair<double, int32_t>> order;
-    for (const auto& f : found) order.insert(order.end(), f.begin(), f.end());
+        });
     std::sort(order.begin(), order.end());
     size_t done = 0;
     for (const auto& [ratio, v] : order) {
