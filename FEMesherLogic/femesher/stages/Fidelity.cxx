@@ -3,8 +3,9 @@
 /// Agreement of a tet mesh with its label map (see Fidelity.h).
 ///
 /// Dice (volume) and the voxel-centre agreement: the mesh is sampled on the voxel grid in the
-/// continuous index frame (internal/TetRaster.h: voxel centres, and a stratified 4x4x4 sub-grid in the
-/// voxels the mesh surface cuts), each point claimed by exactly one tet.
+/// continuous index frame (internal/TetRaster.h: voxel centres, each claimed by exactly one tet,
+/// and in the voxels the mesh surface cuts 5 x 5 stratified lines along x, each shared out
+/// exactly among the tets it crosses).
 ///
 /// Boundary distances work in the canonical frame (mm, spacing ⊙ index), reported in units of the
 /// smallest spacing. Labels boundary = voxel faces between 6-neighbours of different labels, plus
@@ -55,7 +56,11 @@ using KNN = CGAL::Orthogonal_k_neighbor_search<KdTraits>;
 
 constexpr size_t kMaxSamples = 1000000;  ///< per direction
 constexpr int kMaxRing = 12;             ///< voxels searched around a sample before the kd-tree
-constexpr int kOverlapSamples = 4;       ///< sub-samples per axis in voxels the mesh surface cuts
+/// Lines per axis of a voxel face (kOverlapLines^2 lines per voxel) where the mesh surface cuts the
+/// voxel. Measured 2026-11-28 on the knee's mesh against 32 x 32 lines: every label's Dice within
+/// 0.0008 with 4, 0.0006 with 5, 0.0002 with 6, 0.0001 with 8 (4 x 4 x 4 points, before: 0.0014);
+/// `femesher quality` 6.2-6.5 CPU s with 5 against 7.2-7.7 with the points.
+constexpr int kOverlapLines = 5;
 /// Chunks of the per-sample distance loops (their samples cost unevenly; no reduction depends on
 /// the chunking).
 constexpr int kSampleChunks = 64;
@@ -544,7 +549,7 @@ FidelityReport computeFidelity(const LabelVolume& labels, const TetMesh& mesh, R
     checkCancel(ctx);
     if (ctx) ctx->progress(0.25);
     const std::vector<double> overlap = overlapVolumes(labels, mesh, tris, index, tetIndex,
-                                                       meshLabel, kOverlapSamples, threads, ctx);
+                                                       meshLabel, kOverlapLines, threads, ctx);
     checkCancel(ctx);
     if (ctx) ctx->progress(0.4);
     addMaterialFigures(labels, mesh, index, tetIndex,
@@ -628,15 +633,15 @@ std::string fidelityReportToJson(const FidelityReport& r) {
   };
   j["dice_definition"] =
       "volume Dice 2|M∩L|/(|M|+|L|): M = the label's tets, L = its voxels (boxes of the voxel "
-      "size); |M∩L| exact in voxels no mesh triangle crosses, sampled on a stratified 4x4x4 sub-grid in the "
-      "others";
+      "size); |M∩L| exact in voxels no mesh triangle crosses, in the others integrated exactly "
+      "along 5 x 5 lines parallel to the x axis per voxel, stratified in y and z";
   j["voxel_centre_dice_definition"] =
       "2|A∩B|/(|A|+|B|) over voxel centres; B = centres inside tets of the label (not a volume "
       "measure: a surface through every boundary voxel's centre scores 1)";
   j["volume_error_definition"] = "(mesh volume - voxel count * voxel volume) / voxel volume";
   j["boundary_distance_unit"] = "voxels (smallest spacing)";
   j["voxel_size_mm"] = r.voxelSize;
-  j["overlap_samples_per_axis"] = kOverlapSamples;
+  j["overlap_lines_per_axis"] = kOverlapLines;
   j["mesh_to_labels"] = ds(r.meshToLabels);
   j["labels_to_mesh"] = ds(r.labelsToMesh);
   return j.dump(2);

@@ -4,8 +4,10 @@
 /// Agreement of a mesh with the label map it came from.
 ///  - Per material: voxel volume, mesh volume, relative volume error, and the volume Dice
 ///    2|M∩L| / (|M|+|L|) of the material's tets M and its voxels L (each voxel a box of the voxel
-///    size): the overlap is exact in voxels that no mesh triangle crosses and sampled on a 4x4x4
-///    stratified sub-grid in the others (stable to about 0.0005 on the knee's lesions).
+///    size): the overlap is exact in voxels that no mesh triangle crosses; in the others it is
+///    integrated exactly along 5 x 5 lines parallel to x per voxel, stratified in y and z (on the
+///    knee every label's Dice within 0.0006 of the converged value; 4 x 4 x 4 points were within
+///    0.0014).
 ///  - The voxel-centre agreement, a second figure: over all voxel centres, the voxel's label
 ///    against the label of the tet that contains the centre. It is not a volume measure (a
 ///    surface passing through every boundary voxel's centre scores 1 while thin layers lose

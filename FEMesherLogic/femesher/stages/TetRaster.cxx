@@ -142,8 +142,8 @@ void forEachCentre(const LabelVolume& labels, const TetMesh& mesh, const std::ve
   }
 }
 
-/// A deterministic offset in [0, 1) for sub-sample (X, Y, Z) along `axis` (stratified sampling:
-/// one point at a random place in each sub-cell, so the sub-grid does not alias with voxel faces).
+/// A deterministic offset in [0, 1) for cell (X, Y, Z) along `axis` (stratified sampling: one line
+/// at a random place in each cell, so the lines do not alias with voxel faces or mesh planes).
 double jitter(int X, int Y, int Z, int axis) {
   uint64_t h = uint64_t(uint32_t(X)) * 0x9E3779B97F4A7C15ull ^ uint64_t(uint32_t(Y)) * 0xC2B2AE3D27D4EB4Full ^
                uint64_t(uint32_t(Z)) * 0x165667B19E3779F9ull ^ uint64_t(axis + 1) * 0x27D4EB2F165667C5ull;
@@ -153,18 +153,21 @@ double jitter(int X, int Y, int Z, int axis) {
   return double(h >> 11) * (1.0 / 9007199254740992.0);
 }
 
-/// Calls fn(t, vi) for every sub-sample of a voxel vi with cut[vi], in z range [zs, ze], that a
-/// tet t of `candidates` contains: s x s x s stratified samples per voxel.
+/// Calls fn(t, vi, length) for every voxel vi with cut[vi], in z range [zs, ze], and tet t of
+/// `candidates` that meets it: the voxel is crossed by s x s lines along x (stratified: one at a
+/// random place in each of the s x s cells of its y-z face), and `length` is the total length
+/// (in voxels) of those lines inside t. Along x the integral is exact; the lines of a voxel are the
+/// same for every tet, so in a conformal mesh the tets share each line out exactly.
 template <class Fn>
-void forEachCutSample(const LabelVolume& labels, const TetMesh& mesh, const std::vector<Vec3>& idx,
-                      const std::vector<uint32_t>& candidates, const std::vector<uint8_t>& cut,
-                      int s, int zs, int ze, RunContext* ctx, Fn&& fn) {
+void forEachCutLine(const LabelVolume& labels, const TetMesh& mesh, const std::vector<Vec3>& idx,
+                    const std::vector<uint32_t>& candidates, const std::vector<uint8_t>& cut,
+                    int s, int zs, int ze, RunContext* ctx, Fn&& fn) {
   const auto& dims = labels.dims;
   for (size_t i = 0; i < candidates.size(); ++i) {
     if ((i & 0xFFFF) == 0 && ctx && ctx->isCanceled()) return;
     const size_t t = candidates[i];
     const TetCorners q(idx, mesh.tets[t]);
-    int lo[3], hi[3], slo[3], shi[3];  // voxel range and sub-sample cell range of the tet
+    int lo[3], hi[3], slo[3], shi[3];  // voxel range and line cell range of the tet
     for (int k = 0; k < 3; ++k) {
       const double mn = q.mn[k], mx = q.mx[k];
       lo[k] = std::max(0, int(std::floor(mn + 0.5)));
@@ -177,6 +180,8 @@ void forEachCutSample(const LabelVolume& labels, const TetMesh& mesh, const std:
     if (lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2]) continue;
     TetFrame f;
     bool framed = false;
+    // How each barycentric coordinate changes along x.
+    double dx[4] = {0, 0, 0, 0};
     for (int z = lo[2]; z <= hi[2]; ++z)
       for (int y = lo[1]; y <= hi[1]; ++y)
         for (int x = lo[0]; x <= hi[0]; ++x) {
@@ -185,30 +190,46 @@ void forEachCutSample(const LabelVolume& labels, const TetMesh& mesh, const std:
           if (!framed) {
             f = q.frame();
             framed = true;
+            dx[1] = f.g[1][0];
+            dx[2] = f.g[2][0];
+            dx[3] = f.g[3][0];
+            dx[0] = -(dx[1] + dx[2] + dx[3]);
           }
           if (f.flat) break;
-          // A voxel wholly outside the tet holds none of its samples, one wholly inside all.
+          // A voxel wholly outside the tet holds none of its lines, one wholly inside all.
           const int where = f.cube({double(x), double(y), double(z)});
           if (where < 0) continue;
-          // The sub-sample cells of this voxel that the tet's box reaches.
-          const int z0 = std::max(z * s, slo[2]), z1 = std::min(z * s + s - 1, shi[2]);
-          const int y0 = std::max(y * s, slo[1]), y1 = std::min(y * s + s - 1, shi[1]);
-          const int x0 = std::max(x * s, slo[0]), x1 = std::min(x * s + s - 1, shi[0]);
           if (where > 0) {
-            for (int n = (z1 - z0 + 1) * (y1 - y0 + 1) * (x1 - x0 + 1); n > 0; --n) fn(t, vi);
+            fn(t, vi, double(s) * s);
             continue;
           }
+          // The line cells of this voxel that the tet's box reaches.
+          const int z0 = std::max(z * s, slo[2]), z1 = std::min(z * s + s - 1, shi[2]);
+          const int y0 = std::max(y * s, slo[1]), y1 = std::min(y * s + s - 1, shi[1]);
+          double length = 0;
           for (int Z = z0; Z <= z1; ++Z)
-            for (int Y = y0; Y <= y1; ++Y)
-              for (int X = x0; X <= x1; ++X) {
-                const Vec3 p{(X + jitter(X, Y, Z, 0)) / s - 0.5, (Y + jitter(X, Y, Z, 1)) / s - 0.5,
-                             (Z + jitter(X, Y, Z, 2)) / s - 0.5};
-                if (f.contains(p)) fn(t, vi);
+            for (int Y = y0; Y <= y1; ++Y) {
+              // The line's start on the voxel's x face, then the part of [0, 1] where every
+              // barycentric coordinate is non-negative.
+              const Vec3 p{x - 0.5, (Y + jitter(x, Y, Z, 1)) / s - 0.5,
+                           (Z + jitter(x, Y, Z, 2)) / s - 0.5};
+              double l[4];
+              f.coordinates(p, l);
+              double a = 0, b = 1;
+              for (int k = 0; k < 4 && a < b; ++k) {
+                if (dx[k] > 0)
+                  a = std::max(a, -l[k] / dx[k]);
+                else if (dx[k] < 0)
+                  b = std::min(b, -l[k] / dx[k]);
+                else if (l[k] < 0)
+                  b = a;
               }
+              if (b > a) length += b - a;
+            }
+          if (length > 0) fn(t, vi, length);
         }
   }
 }
-
 /// The z-slabs a parallel sweep of the grid uses (about eight per thread): slab k holds voxel
 /// planes [first[k], first[k + 1]), and tets[k] the tets whose z extent (continuous voxel index,
 /// grown by half a voxel) reaches it, in mesh order.
@@ -367,46 +388,53 @@ std::vector<uint16_t> rasterize(const LabelVolume& labels, const TetMesh& mesh,
 std::vector<double> overlapVolumes(const LabelVolume& labels, const TetMesh& mesh,
                                    const std::vector<InterfaceTriangle>& tris,
                                    const LabelIndex& index, const std::vector<uint16_t>& tetIndex,
-                                   const std::vector<uint16_t>& centre, int samplesPerAxis,
+                                   const std::vector<uint16_t>& centre, int linesPerAxis,
                                    int threads, RunContext* ctx) {
-  const int s = std::max(1, samplesPerAxis);
+  const int s = std::max(1, linesPerAxis);
   const std::vector<Vec3> idx = indexPositions(labels, mesh, threads);
   const std::vector<uint8_t> cut = cutVoxels(labels, tris, idx, threads);
   const size_t L = index.size();
   const int nz = labels.dims[2];
   const size_t sliceSize = size_t(labels.dims[0]) * size_t(labels.dims[1]);
-  // Per z-slice: whole voxels (uncut, centre agrees) and sub-samples (cut voxels) that agree.
-  std::vector<std::vector<uint64_t>> whole(static_cast<size_t>(nz)),
-      samples(static_cast<size_t>(nz));
+  // Per z-slice: whole voxels (uncut, centre agrees) and the length of lines (cut voxels) in
+  // tets that agree, in units of 2^-50 voxel (integers: the sums do not depend on their order, so
+  // neither on the slabs nor on the thread count; 128 bits hold any grid's total).
+  using Length = unsigned __int128;
+  constexpr double kUnit = 1125899906842624.0;  // 2^50
+  std::vector<std::vector<uint64_t>> whole(static_cast<size_t>(nz));
+  std::vector<std::vector<Length>> lines(static_cast<size_t>(nz));
   const Slabs slabs = slabsOf(labels, mesh, idx, threads);
   parallelFor(slabs.tets.size(), threads, [&](size_t s0, size_t s1, int) {
     for (size_t sl = s0; sl < s1; ++sl) {
       const int zs = slabs.first[sl], ze = slabs.first[sl + 1] - 1;
-      std::vector<uint64_t> w(L, 0), smp(L, 0);
+      std::vector<uint64_t> w(L, 0);
+      std::vector<Length> len(L, 0);
       for (size_t vi = size_t(zs) * sliceSize; vi < size_t(ze + 1) * sliceSize; ++vi) {
         if (cut[vi]) continue;
         const uint16_t l = index(labels.labels[vi]);
         if (l != 0 && centre[vi] == l) ++w[l];
       }
-      forEachCutSample(labels, mesh, idx, slabs.tets[sl], cut, s, zs, ze, ctx,
-                       [&](size_t t, size_t vi) {
-                         const uint16_t l = tetIndex[t];
-                         if (l == index(labels.labels[vi])) ++smp[l];
-                       });
+      forEachCutLine(labels, mesh, idx, slabs.tets[sl], cut, s, zs, ze, ctx,
+                     [&](size_t t, size_t vi, double length) {
+                       const uint16_t l = tetIndex[t];
+                       if (l == index(labels.labels[vi])) len[l] += Length(std::llround(length * kUnit));
+                     });
       whole[size_t(zs)] = std::move(w);
-      samples[size_t(zs)] = std::move(smp);
+      lines[size_t(zs)] = std::move(len);
     }
   }, int(slabs.tets.size()));  // one chunk per slab: their costs differ widely
   const Vec3& sp = labels.spacing;
-  const double voxel = sp[0] * sp[1] * sp[2], sample = voxel / (double(s) * s * s);
-  std::vector<uint64_t> w(L, 0), smp(L, 0);
+  // A line of length 1 stands for 1 / s^2 of its voxel.
+  const double voxel = sp[0] * sp[1] * sp[2], line = voxel / (double(s) * s);
+  std::vector<uint64_t> w(L, 0);
+  std::vector<Length> len(L, 0);
   for (int z = 0; z < nz; ++z)
     for (size_t k = 0; k < L && !whole[size_t(z)].empty(); ++k) {
       w[k] += whole[size_t(z)][k];
-      smp[k] += samples[size_t(z)][k];
+      len[k] += lines[size_t(z)][k];
     }
   std::vector<double> overlap(L, 0.0);
-  for (size_t k = 1; k < L; ++k) overlap[k] = double(w[k]) * voxel + double(smp[k]) * sample;
+  for (size_t k = 1; k < L; ++k) overlap[k] = double(w[k]) * voxel + double(len[k]) / kUnit * line;
   return overlap;
 }
 

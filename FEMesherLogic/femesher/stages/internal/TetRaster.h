@@ -6,9 +6,10 @@
 ///  - `rasterize`: the tet containing each voxel centre (the voxel-centre agreement);
 ///  - `overlapVolumes`: per label, the volume shared by that label's tets and its voxels (the
 ///    volume Dice). A voxel crossed by no interface or boundary triangle of the mesh lies in one
-///    material region, which its centre tells; every other voxel is sampled on an s x s x s (stratified)
-///    sub-grid (s = samplesPerAxis), so the overlap is exact up to the sub-grid on the voxels the
-///    mesh surface cuts, and exact elsewhere.
+///    material region, which its centre tells; every other voxel is crossed by s x s lines
+///    parallel to x (s = linesPerAxis, one at a random place in each cell of the voxel's y-z face)
+///    and each tet gets the length of each line inside it, exactly: the overlap is exact along x,
+///    stratified across, and exact in the voxels the mesh surface does not cut.
 /// Containment of a sample point: all four barycentric coordinates > tol; a point on a face
 /// belongs to the tet only when the face's outward normal is lexicographically positive
 /// ("simulation of simplicity"), so in a conformal mesh every point is claimed by exactly one
@@ -50,11 +51,12 @@ std::vector<uint16_t> rasterize(const LabelVolume& labels, const TetMesh& mesh,
 
 /// Per dense label index k: the volume (mm^3) of the intersection of the tets with
 /// tetIndex == k and the voxels whose label has index k. `centre` is `rasterize`'s result with
-/// the same indices, `tris` the mesh's extractInterfaces(). samplesPerAxis >= 1.
+/// the same indices, `tris` the mesh's extractInterfaces(). linesPerAxis >= 1. The lengths are
+/// summed as integers (units of 2^-50 voxel): the result does not depend on the thread count.
 std::vector<double> overlapVolumes(const LabelVolume& labels, const TetMesh& mesh,
                                    const std::vector<InterfaceTriangle>& tris,
                                    const LabelIndex& index, const std::vector<uint16_t>& tetIndex,
-                                   const std::vector<uint16_t>& centre, int samplesPerAxis,
+                                   const std::vector<uint16_t>& centre, int linesPerAxis,
                                    int threads, RunContext* ctx);
 
 }  // namespace femesher
