@@ -230,6 +230,7 @@ void forEachCutLine(const LabelVolume& labels, const TetMesh& mesh, const std::v
         }
   }
 }
+
 /// The z-slabs a parallel sweep of the grid uses (about eight per thread): slab k holds voxel
 /// planes [first[k], first[k + 1]), and tets[k] the tets whose z extent (continuous voxel index,
 /// grown by half a voxel) reaches it, in mesh order.
