@@ -163,6 +163,7 @@ void forEachCutLine(const LabelVolume& labels, const TetMesh& mesh, const std::v
                     const std::vector<uint32_t>& candidates, const std::vector<uint8_t>& cut,
                     int s, int zs, int ze, RunContext* ctx, Fn&& fn) {
   const auto& dims = labels.dims;
+  const double cell = 1.0 / s;  // a line cell's width (voxels)
   for (size_t i = 0; i < candidates.size(); ++i) {
     if ((i & 0xFFFF) == 0 && ctx && ctx->isCanceled()) return;
     const size_t t = candidates[i];
@@ -180,8 +181,8 @@ void forEachCutLine(const LabelVolume& labels, const TetMesh& mesh, const std::v
     if (lo[0] > hi[0] || lo[1] > hi[1] || lo[2] > hi[2]) continue;
     TetFrame f;
     bool framed = false;
-    // How each barycentric coordinate changes along x.
-    double dx[4] = {0, 0, 0, 0};
+    // How each barycentric coordinate changes along x, and its inverse (0: it does not).
+    double dx[4] = {0, 0, 0, 0}, inv[4] = {0, 0, 0, 0};
     for (int z = lo[2]; z <= hi[2]; ++z)
       for (int y = lo[1]; y <= hi[1]; ++y)
         for (int x = lo[0]; x <= hi[0]; ++x) {
@@ -194,6 +195,7 @@ void forEachCutLine(const LabelVolume& labels, const TetMesh& mesh, const std::v
             dx[2] = f.g[2][0];
             dx[3] = f.g[3][0];
             dx[0] = -(dx[1] + dx[2] + dx[3]);
+            for (int k = 0; k < 4; ++k) inv[k] = dx[k] != 0 ? 1 / dx[k] : 0;
           }
           if (f.flat) break;
           // A voxel wholly outside the tet holds none of its lines, one wholly inside all.
@@ -211,16 +213,16 @@ void forEachCutLine(const LabelVolume& labels, const TetMesh& mesh, const std::v
             for (int Y = y0; Y <= y1; ++Y) {
               // The line's start on the voxel's x face, then the part of [0, 1] where every
               // barycentric coordinate is non-negative.
-              const Vec3 p{x - 0.5, (Y + jitter(x, Y, Z, 1)) / s - 0.5,
-                           (Z + jitter(x, Y, Z, 2)) / s - 0.5};
+              const Vec3 p{x - 0.5, (Y + jitter(x, Y, Z, 1)) * cell - 0.5,
+                           (Z + jitter(x, Y, Z, 2)) * cell - 0.5};
               double l[4];
               f.coordinates(p, l);
               double a = 0, b = 1;
               for (int k = 0; k < 4 && a < b; ++k) {
                 if (dx[k] > 0)
-                  a = std::max(a, -l[k] / dx[k]);
+                  a = std::max(a, -l[k] * inv[k]);
                 else if (dx[k] < 0)
-                  b = std::min(b, -l[k] / dx[k]);
+                  b = std::min(b, -l[k] * inv[k]);
                 else if (l[k] < 0)
                   b = a;
               }
