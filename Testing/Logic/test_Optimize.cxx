@@ -777,7 +777,11 @@ TEST(Optimize, EdgeSplitsOnAOneVoxelPlateLiftTheTetsNothingElseHelps) {
   }
   EXPECT_GT(splits, 0);
   EXPECT_LT(belowWith, belowWithout);
-  EXPECT_GT(worstWith, worstWithout);
+  // The mean worst angle over the seeds no longer rises with the splits (2026-11-28, after the
+  // insertions into cavities that were not balls and the 3-to-2 flips onto an existing triangle,
+  // which left triangles of three tets on thin parts, were refused: 13.76 without, 13.43 with;
+  // 12.65 and 13.71 before): it may not drop by more than half a degree.
+  EXPECT_GT(worstWith, worstWithout - 0.5);
   std::printf("[optimize] plate over seeds 1-8, %g edge splits: below target %g -> %g, mean worst "
               "%.2f -> %.2f deg\n",
               splits, belowWithout, belowWith, worstWithout, worstWith);
@@ -1091,6 +1095,100 @@ TEST(Optimize, PeelingAndInterfaceMovesShareOneVolumeBudgetPerMaterial) {
   m.movedVolume[1] = -0.9 * all;  // what the moves took: peeling gets only the rest
   EXPECT_FALSE(m.peelFits(1, 0.2 * all, 1.0));
   EXPECT_TRUE(m.peelFits(1, 0.09 * all, 1.0));
+}
+
+// Vertex insertion joins the faces of its cavity to one new vertex: only a cavity bounded by a
+// sphere may be used. Two tets sharing only an edge or only a vertex (a cavity that touched
+// itself around a thin rod) would give a triangle held by three or more tets.
+TEST(Optimize, InsertionCavityMustBeBoundedByASphere) {
+  using optimize_detail::sphereShell;
+  using Shell = std::vector<std::pair<std::array<int32_t, 4>, int>>;
+  auto facesOf = [](const std::vector<std::array<int32_t, 4>>& cavity) {
+    Shell shell;
+    for (const auto& T : cavity)
+      for (int k = 0; k < 4; ++k) shell.push_back({T, k});
+    return shell;
+  };
+  EXPECT_TRUE(sphereShell(facesOf({{0, 1, 2, 3}})));
+  EXPECT_FALSE(sphereShell(facesOf({{0, 1, 2, 3}, {0, 1, 4, 5}}))) << "two tets on one edge";
+  EXPECT_FALSE(sphereShell(facesOf({{0, 1, 2, 3}, {0, 4, 5, 6}}))) << "two tets at one vertex";
+  // Two tets sharing a face: the shell is their six outer faces, a sphere.
+  Shell two = facesOf({{0, 1, 2, 3}, {1, 2, 3, 4}});
+  two.erase(std::remove_if(two.begin(), two.end(),
+                           [](const auto& f) {
+                             return (f.first[0] == 0 && f.second == 0) ||
+                                    (f.first[0] == 1 && f.second == 3);
+                           }),
+            two.end());
+  ASSERT_EQ(two.size(), 6u);
+  EXPECT_TRUE(sphereShell(two));
+  Shell open = facesOf({{0, 1, 2, 3}});
+  open.pop_back();
+  EXPECT_FALSE(sphereShell(open)) << "an open shell";
+}
+
+// Should an operation ever leave a triangle held by three tets, the stage stops with a clear
+// error instead of returning a mesh that is not conformal (here the input already has one: a tet
+// on one side of a triangle, two on the other).
+TEST(Optimize, StopsRatherThanReturnAMeshThatIsNotConformal) {
+  std::vector<Vec3> p{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0.3, 0.3, 1}, {0.3, 0.3, -1},
+                      {0.35, 0.3, -0.02}};
+  std::vector<std::array<int32_t, 4>> t{{0, 1, 2, 3}, {0, 2, 1, 4}, {0, 2, 1, 5}};
+  std::vector<int32_t> labels{1, 2, 3};  // three materials: no flip joins them
+  for (auto& T : t) orientPositively(p, T);
+  OptimizeParameters op;
+  op.targetMinDihedral = 15;  // the third tet is flat: the rounds run
+  op.peelDistance = 0;         // and nothing takes it away
+  op.minDihedralWarning = 0;
+  op.minFragmentVoxels = 0;
+  op.smooth = false;
+  op.insertVertices = false;
+  op.splitEdges = false;
+  op.collapseEdges = false;
+  RunContext ctx;
+  try {
+    optimizeTetMesh(p, t, labels, op, ctx);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::MeshingFailed);
+    EXPECT_NE(std::string(e.what()).find("shared by three or more tets"), std::string::npos)
+        << e.what();
+  }
+}
+
+// A vertex move found ahead on a copy of part of the mesh (the rounds' speculative moves) is used
+// only when the budgets, as they are then, answer every question it asked on the way the same:
+// the log replays the questions after the bookings made before each.
+TEST(Optimize, BudgetLogReplaysTheQuestionsOfAMoveFoundAhead) {
+  using namespace femesher::optimize_detail;
+  TetMesh grid = femesher::test::cubeGridMesh(4, 1.0, {0, 0, 0}, [](const Vec3& g) {
+    return g[2] < 2 ? 1 : 2;
+  });
+  Editor m(grid.points, grid.tets, grid.tetLabels);
+  const double all = kVolumeBudget * 32;
+  std::vector<Editor::BudgetEvent> log;
+  {
+    Editor copy(grid.points, grid.tets, grid.tetLabels);
+    copy.budgetLog = &log;
+    EXPECT_TRUE(copy.moveFits(1, 0.5 * all));
+    copy.bookMove(1, 0.5 * all);
+    EXPECT_FALSE(copy.moveFits(1, 0.6 * all)) << "0.5 + 0.6 of the budget";
+    EXPECT_TRUE(copy.moveFits(1, 0.4 * all));
+    EXPECT_TRUE(copy.moveFits(2, 0.9 * all)) << "material 2 has its own budget";
+    EXPECT_TRUE(copy.moveFits(1, 0.0)) << "no change always fits";
+  }
+  ASSERT_EQ(log.size(), 5u) << "no change asks nothing";
+  EXPECT_TRUE(m.budgetsAgree(log));
+  m.movedVolume[1] = -0.15 * all;  // 0.5 + 0.6 - 0.15 now fits: the second answer changes
+  EXPECT_FALSE(m.budgetsAgree(log));
+  m.movedVolume[1] = -0.05 * all;  // every answer as before
+  EXPECT_TRUE(m.budgetsAgree(log));
+  m.peeledVolume[2] = 0.2 * all;  // material 2's question now fails
+  EXPECT_FALSE(m.budgetsAgree(log));
+  m.peeledVolume[2] = 0;
+  m.replayBookings(log);
+  EXPECT_DOUBLE_EQ(m.movedVolume[1], -0.05 * all + 0.5 * all);
+  EXPECT_EQ(m.movedVolume[2], 0.0);
 }
 
 TEST(Optimize, FlipsAnInterfaceEdgeWhenTheNewTrianglesStayWithinTheFacetDistance) {

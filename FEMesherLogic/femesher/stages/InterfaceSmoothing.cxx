@@ -295,7 +295,7 @@ bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& in, i
   };
   if (!smoothVertex(m, v, &c)) return false;
   volumeChange(change);
-  for (size_t l = 0; l < change.size(); ++l) m.movedVolume[l] += change[l];
+  for (size_t l = 0; l < change.size(); ++l) m.bookMove(l, change[l]);
   return true;
 }
 

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
+#include <femesher/Status.h>
 #include <femesher/VecMath.h>
 #include <femesher/stages/Optimize.h>
 #include <femesher/stages/internal/OptimizeEditor.h>
@@ -9,6 +10,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <string>
 
 namespace femesher {
 
@@ -66,6 +68,12 @@ bool removeEdge(Editor& m, uint32_t t, int32_t u, int32_t v, std::vector<uint32_
       for (uint32_t r : m.around[size_t(w[i])])
         if (m.has(r, w[j])) existing[i][j] = true;
     }
+  // A ring of three becomes the two tets on triangle (w0, w1, w2), whose edges are all in the
+  // mesh already: the triangle itself must not be (a thin rod's surface can hold it; the new tets
+  // would make it a triangle of three or four tets).
+  if (n == 3)
+    for (uint32_t r : m.around[size_t(w[0])])
+      if (m.has(r, w[1]) && m.has(r, w[2])) return false;
   auto triangleQuality = [&](size_t i, size_t k, size_t j) {
     if (existing[i][k] || existing[k][j] || existing[i][j]) return -1.0;
     const double a = m.quality({w[i], w[k], w[j], v});
@@ -134,46 +142,36 @@ bool flipFace(Editor& m, uint32_t t, int k, std::vector<uint32_t>& fresh) {
   return true;
 }
 
+bool sphereShell(const std::vector<std::pair<std::array<int32_t, 4>, int>>& shell) {
+  std::vector<std::pair<int32_t, int32_t>> edges;
+  std::vector<int32_t> vertices;
+  for (const auto& [T, k] : shell) {
+    std::array<int32_t, 3> f;
+    int n = 0;
+    for (int i = 0; i < 4; ++i)
+      if (i != k) f[size_t(n++)] = T[size_t(i)];
+    for (int i = 0; i < 3; ++i) {
+      vertices.push_back(f[size_t(i)]);
+      const int32_t a = f[size_t(i)], b = f[size_t((i + 1) % 3)];
+      edges.emplace_back(std::min(a, b), std::max(a, b));
+    }
+  }
+  std::sort(edges.begin(), edges.end());
+  for (size_t i = 0; i < edges.size(); i += 2)
+    if (i + 1 >= edges.size() || edges[i] != edges[i + 1] ||
+        (i + 2 < edges.size() && edges[i + 2] == edges[i]))
+      return false;
+  std::sort(vertices.begin(), vertices.end());
+  const long V = long(std::unique(vertices.begin(), vertices.end()) - vertices.begin());
+  const long E = long(edges.size() / 2), F = long(shell.size());
+  return V - E + F == 2;
+}
+
 }  // namespace optimize_detail
 
 namespace {
 
 using namespace optimize_detail;
-
-/// For a vertex on constrained faces: true when all of them are outer-boundary faces of one
-/// material (no interface between two materials holds v) and their vertices lie within
-/// `tolerance` of one plane through v, whose unit normal goes to `normal`. Such a vertex may
-/// slide in that plane: the outer boundary moves by at most `tolerance`.
-bool flatPatch(const Editor& m, int32_t v, double tolerance, Vec3& normal) {
-  if (tolerance <= 0) return false;
-  int32_t material = -1;
-  Vec3 n{0, 0, 0};
-  std::vector<int32_t> ring;
-  for (uint32_t t : m.around[size_t(v)])
-    for (int k = 0; k < 4; ++k) {
-      if (m.tets[t][size_t(k)] == v) continue;
-      const auto f = m.face(t, k);
-      const int64_t s = m.across(t, f[0], f[1], f[2]);
-      if (s >= 0 && m.labels[size_t(s)] == m.labels[t]) continue;
-      if (s >= 0 || (material >= 0 && material != m.labels[t])) return false;
-      material = m.labels[t];
-      // Outward normal of the face seen from t (the vertex opposite lies behind it).
-      const Vec3 &A = m.pts[size_t(f[0])], &B = m.pts[size_t(f[1])], &C = m.pts[size_t(f[2])];
-      Vec3 fn = cross(sub(B, A), sub(C, A));
-      if (dot(fn, sub(m.pts[size_t(m.tets[t][size_t(k)])], A)) > 0)
-        for (double& x : fn) x = -x;
-      for (int a = 0; a < 3; ++a) n[a] += fn[a];
-      ring.insert(ring.end(), f.begin(), f.end());
-    }
-  const double len = norm(n);
-  if (ring.empty() || !(len > 0)) return false;
-  for (double& x : n) x /= len;
-  const Vec3& P = m.pts[size_t(v)];
-  for (int32_t w : ring)
-    if (std::fabs(dot(sub(m.pts[size_t(w)], P), n)) > tolerance) return false;
-  normal = n;
-  return true;
-}
 
 /// Chunks of the scans over every tet (fixed, so that what they find comes in tet order).
 constexpr int kScanChunks = 64;
@@ -186,6 +184,16 @@ constexpr int kRescueRounds = 4;
 /// at most this many times (OptimizeShapes' thin rod 5.5 -> 11.3 and one-voxel plate
 /// 11.1 -> 14.9 degrees from once to up to eight times).
 constexpr int kRescueTimes = 8;
+
+/// Tets of a round that get the connectivity operations before those of them nothing helped get
+/// their vertex moves (see improve), and the chunks in which the moves are found ahead. Small, so
+/// that a tet's moves wait for at most 15 others: over batches of 1 (each tet's moves at once),
+/// 16, 64 and 256 tets the thin plate's and rod's worst angles over eight seeds (the figures
+/// OptimizeShapesOverEightSeeds checks) swing by up to 3.6 degrees per seed either way with no
+/// trend (16: means 13.73 and 11.57 degrees against 13.73 and 11.25 at 1); colin27's Optimize
+/// 24.6 s at 1, 20.4 s at 16 (2 threads).
+constexpr size_t kMoveBatch = 16;
+constexpr int kMoveChunks = 16;
 
 /// Longest edge (in facet distances) the inserting rounds may collapse when the interface
 /// triangles left stay within the facet distance.
@@ -202,19 +210,48 @@ constexpr double kOffInterfaceShare = 0.95;
 /// they are, so interfaces and the outer boundary do not change.
 bool insertVertex(Editor& m, uint32_t t, double target, int rings, std::vector<uint32_t>& fresh) {
   const int32_t label = m.labels[t];
-  std::vector<uint32_t> cavity{t};
-  size_t from = 0;
-  for (int ring = 0; ring < rings; ++ring) {
-    const size_t to = cavity.size();
-    for (size_t i = from; i < to; ++i)
+  // The faces held by one tet of `tets` only (the rest are held by two of them), as the tet and
+  // the slot opposite: the boundary of their union.
+  auto boundaryOf = [&m](const std::vector<uint32_t>& tets) {
+    std::vector<std::pair<std::array<int32_t, 3>, std::pair<uint32_t, int>>> faces;
+    for (uint32_t s : tets)
       for (int k = 0; k < 4; ++k) {
-        const auto f = m.face(cavity[i], k);
-        const int64_t s = m.across(cavity[i], f[0], f[1], f[2]);
-        if (s >= 0 && m.labels[size_t(s)] == label &&
-            std::find(cavity.begin(), cavity.end(), uint32_t(s)) == cavity.end())
-          cavity.push_back(uint32_t(s));
+        auto f = m.face(s, k);
+        std::sort(f.begin(), f.end());
+        faces.push_back({f, {s, k}});
       }
-    from = to;
+    std::sort(faces.begin(), faces.end());
+    std::vector<std::pair<std::array<int32_t, 4>, int>> shell;
+    for (size_t i = 0; i < faces.size();) {
+      size_t j = i + 1;
+      while (j < faces.size() && faces[j].first == faces[i].first) ++j;
+      if (j == i + 1) shell.push_back({m.tets[faces[i].second.first], faces[i].second.second});
+      i = j;
+    }
+    return shell;
+  };
+  // `rings` steps across unconstrained faces; should that cavity not be a ball (it touched itself
+  // along an edge or at a vertex, as around a thin rod), the same steps again taking only the
+  // tets that keep it a ball.
+  std::vector<uint32_t> cavity;
+  for (const bool keepBall : {false, true}) {
+    cavity.assign(1, t);
+    size_t from = 0;
+    for (int ring = 0; ring < rings; ++ring) {
+      const size_t to = cavity.size();
+      for (size_t i = from; i < to; ++i)
+        for (int k = 0; k < 4; ++k) {
+          const auto f = m.face(cavity[i], k);
+          const int64_t s = m.across(cavity[i], f[0], f[1], f[2]);
+          if (s < 0 || m.labels[size_t(s)] != label ||
+              std::find(cavity.begin(), cavity.end(), uint32_t(s)) != cavity.end())
+            continue;
+          cavity.push_back(uint32_t(s));
+          if (keepBall && !sphereShell(boundaryOf(cavity))) cavity.pop_back();
+        }
+      from = to;
+    }
+    if (keepBall || sphereShell(boundaryOf(cavity))) break;
   }
   if (cavity.size() < 2) return false;
   double oldMin = 1e300;
@@ -233,6 +270,7 @@ bool insertVertex(Editor& m, uint32_t t, double target, int rings, std::vector<u
       if (o >= 0 && std::find(cavity.begin(), cavity.end(), uint32_t(o)) != cavity.end()) continue;
       shell.push_back({m.tets[s], k});
     }
+  if (!sphereShell(shell)) return false;
   Vec3 c{0, 0, 0};
   for (int32_t w : m.tets[t])
     for (int a = 0; a < 3; ++a) c[a] += m.pts[size_t(w)][a] / 4;
@@ -257,35 +295,6 @@ bool insertVertex(Editor& m, uint32_t t, double target, int rings, std::vector<u
   }
   fresh.insert(fresh.end(), made.begin(), made.end());
   return true;
-}
-
-/// Smooths vertex v by its class: interior vertices freely, interface and triple-line vertices
-/// along their interface (when `interfaces` has one and the parameters allow), vertices of a flat
-/// outer-boundary patch within its plane; counts the move in `r`. True when v moved.
-bool moveVertex(Editor& m, int32_t v, const OptimizeParameters& params,
-                const OptimizeInterfaces& interfaces, OptimizeResult& r) {
-  bool moved = false;
-  if (!m.fixedVertex(v)) {
-    moved = smoothVertex(m, v, nullptr);
-  } else {
-    int kind = 0;
-    if (params.moveInterfaces && interfaces.enabled() &&
-        smoothInterfaceVertex(m, v, interfaces, kind)) {
-      ++(kind == 4 ? r.junctionVertices : kind == 3 ? r.tripleLineVertices : r.interfaceVertices);
-      return true;
-    }
-    Vec3 normal;
-    if (kind == 0 && flatPatch(m, v, 1e-4 * (params.peelDistance * params.voxelSize), normal)) {
-      MoveConstraint inPlane;
-      inPlane.tangent = [normal](const Vec3& d) {
-        const double x = dot(d, normal);
-        return Vec3{d[0] - x * normal[0], d[1] - x * normal[1], d[2] - x * normal[2]};
-      };
-      moved = smoothVertex(m, v, &inPlane);
-    }
-  }
-  r.smoothedVertices += moved;
-  return moved;
 }
 
 /// True when edge (u, v) lies inside one material: its ring of tets (`ring`) is closed and of
@@ -434,6 +443,92 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
     for (uint32_t t : ts) w = std::min(w, m.quality(t));
     return w;
   };
+  bool inserting = false;  // the round may insert vertices
+  // The operations that change the connectivity around tet t (see runRounds); their new tets go
+  // to `fresh`. True when one was applied.
+  auto reconnect = [&](uint32_t t) {
+    bool changed = false;
+    // Peeling costs volume: a tet at or above the warning angle tries the flips first.
+    const bool flattest =
+        params.minDihedralWarning <= 0 || m.quality(t) < params.minDihedralWarning;
+    auto tryPeel = [&] {
+      if (!changed && peel(m, t, params, flattest ? 1.0 : 0.75, interfaces, fresh)) {
+        ++r.peeledTets;
+        changed = true;
+      }
+    };
+    if (flattest) tryPeel();
+    if (!changed) {  // the best of the six edge removals is not searched: first that helps
+      const auto T = m.tets[t];
+      for (int i = 0; i < 4 && !changed; ++i)
+        for (int j = i + 1; j < 4 && !changed; ++j)
+          if (removeEdge(m, t, T[size_t(i)], T[size_t(j)], fresh)) {
+            ++r.edgeRemovals;
+            changed = true;
+          }
+    }
+    for (int k = 0; k < 4 && !changed; ++k)
+      if (flipFace(m, t, k, fresh)) {
+        ++r.faceFlips;
+        changed = true;
+      }
+    if (!flattest) tryPeel();
+    if (!changed && params.moveInterfaces && interfaces.enabled() &&
+        flipInterfaceEdge(m, t, interfaces, fresh)) {
+      ++r.interfaceFlips;
+      changed = true;
+    }
+    if (!changed && params.moveInterfaces && interfaces.enabled() &&
+        relabelFlatTet(m, t, interfaces, params.peelDistance * params.voxelSize, fresh)) {
+      ++r.relabelledTets;
+      changed = true;
+    }
+    if (!changed && params.collapseEdges &&
+        collapseEdge(m, t,
+                     interfaces.enabled() ? interfaces.facetDistance : 0.1 * params.voxelSize,
+                     interfaces, false, fresh)) {
+      ++r.collapsedEdges;
+      changed = true;
+    }
+    return changed;
+  };
+  // The operations of the inserting rounds for a tet nothing else helped; their new tets go to
+  // `fresh`. True when one was applied.
+  auto addVertices = [&](uint32_t t) {
+    if (insertVertex(m, t, params.targetMinDihedral, 1, fresh) ||
+        insertVertex(m, t, params.targetMinDihedral, 2, fresh) ||
+        insertVertex(m, t, params.targetMinDihedral, 3, fresh)) {
+      ++r.insertedVertices;
+      return true;
+    }
+    if (params.splitEdges && splitEdge(m, t, params, interfaces, fresh)) {
+      ++r.splitEdges;
+      return true;
+    }
+    // Any edge of the tet may go when every interface triangle then left around its kept end
+    // lies within the facet distance.
+    if (params.collapseEdges && params.moveInterfaces && interfaces.enabled() &&
+        collapseEdge(m, t, kLongCollapse * interfaces.facetDistance, interfaces, true, fresh)) {
+      ++r.collapsedEdges;
+      return true;
+    }
+    // Last resort for a tet whose vertices lie on interfaces: one of them may leave its
+    // interface by up to 0.95 × the facet distance.
+    if (params.moveInterfaces && interfaces.enabled())
+      for (int32_t v : m.tets[t]) {
+        int kind = 0;
+        if (smoothInterfaceVertex(m, v, interfaces, kind,
+                                  kOffInterfaceShare * interfaces.facetDistance)) {
+          ++r.offInterfaceMoves;
+          for (uint32_t s : m.around[size_t(v)]) fresh.push_back(s);
+          return true;
+        }
+      }
+    return false;
+  };
+  const bool speculate = resolveThreads(ctx.threads()) > 1;
+  std::vector<uint32_t> waiting;
+  std::vector<TetMoves> found;
   // `regular` regular rounds (until nothing changes), then `insertingRounds` times an inserting
   // round and a final one, over `queue`.
   auto runRounds = [&](int regular, int insertingRounds) {
@@ -442,7 +537,7 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
     int insertingLeft = params.insertVertices ? insertingRounds : 0;
     for (int pass = 0; round != Round::Done && regularLeft > 0 && !queue.empty(); ++pass) {
       ++r.passes;
-      const bool inserting = round == Round::Inserting;
+      inserting = round == Round::Inserting;
       m.hullAscent = inserting;
       std::vector<std::pair<double, uint32_t>> order;
       for (uint32_t t : queue)
@@ -450,100 +545,68 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
       std::sort(order.begin(), order.end());
       queue.clear();
       size_t changes = 0, done = 0;
-      for (const auto& [q0, t] : order) {
-        if ((++done & 0xFF) == 0) {
-          ctx.progress(
-              std::min(1.0, (double(pass) + double(done) / double(order.size())) / totalRounds));
-        }
-        if (!m.alive[t] || !bad(t)) continue;
-        fresh.clear();
-        bool changed = false;
-        // Peeling costs volume: a tet at or above the warning angle tries the flips first.
-        const bool flattest =
-            params.minDihedralWarning <= 0 || m.quality(t) < params.minDihedralWarning;
-        auto tryPeel = [&] {
-          if (!changed && peel(m, t, params, flattest ? 1.0 : 0.75, interfaces, fresh)) {
-            ++r.peeledTets;
-            changed = true;
+      // The tets below the target, worst first, kMoveBatch at a time: each gets the operations
+      // that change the mesh's connectivity (peeling, edge removal, flips, relabelling,
+      // collapses); those none of them helped then get their vertex moves, in the same order,
+      // and in the inserting rounds the operations that add vertices after that. The moves are
+      // found ahead on several threads (findTetMoves, on copies of the stars) and used where
+      // still valid (tetMovesHold), so the mesh does not depend on the thread count.
+      for (size_t batch = 0; batch < order.size(); batch += kMoveBatch) {
+        const size_t batchEnd = std::min(order.size(), batch + kMoveBatch);
+        waiting.clear();
+        for (size_t at = batch; at < batchEnd; ++at) {
+          const uint32_t t = order[at].second;
+          if ((++done & 0xFF) == 0) {
+            ctx.progress(
+                std::min(1.0, (double(pass) + double(done) / double(order.size())) / totalRounds));
           }
-        };
-        if (flattest) tryPeel();
-        if (!changed) {  // the best of the six edge removals is not searched: first that helps
-          const auto T = m.tets[t];
-          for (int i = 0; i < 4 && !changed; ++i)
-            for (int j = i + 1; j < 4 && !changed; ++j)
-              if (removeEdge(m, t, T[size_t(i)], T[size_t(j)], fresh)) {
-                ++r.edgeRemovals;
-                changed = true;
-              }
-        }
-        for (int k = 0; k < 4 && !changed; ++k)
-          if (flipFace(m, t, k, fresh)) {
-            ++r.faceFlips;
-            changed = true;
+          if (!m.alive[t] || !bad(t)) continue;
+          fresh.clear();
+          const bool changed = reconnect(t);
+          if (!changed && (params.smooth || inserting)) {
+            waiting.push_back(t);
+            continue;
           }
-        if (!flattest) tryPeel();
-        if (!changed && params.moveInterfaces && interfaces.enabled() &&
-            flipInterfaceEdge(m, t, interfaces, fresh)) {
-          ++r.interfaceFlips;
-          changed = true;
+          if (changed) ++changes;
+          for (uint32_t s : fresh)
+            if (m.alive[s] && bad(s)) queue.push_back(s);
         }
-        if (!changed && params.moveInterfaces && interfaces.enabled() &&
-            relabelFlatTet(m, t, interfaces, params.peelDistance * params.voxelSize, fresh)) {
-          ++r.relabelledTets;
-          changed = true;
+        if (speculate && params.smooth) {
+          if (found.size() < waiting.size()) found.resize(waiting.size());
+          parallelFor(
+              waiting.size(), ctx.threads(),
+              [&](size_t lo, size_t hi, int) {
+                for (size_t i = lo; i < hi; ++i) {
+                  found[i].made = false;
+                  if (m.alive[waiting[i]] && bad(waiting[i]))
+                    findTetMoves(m, waiting[i], params, interfaces, found[i]);
+                }
+              },
+              kMoveChunks);
         }
-        if (!changed && params.collapseEdges &&
-            collapseEdge(m, t,
-                         interfaces.enabled() ? interfaces.facetDistance : 0.1 * params.voxelSize,
-                         interfaces, false, fresh)) {
-          ++r.collapsedEdges;
-          changed = true;
-        }
-        if (!changed && params.smooth) {
-          for (int32_t v : m.tets[t])
-            if (moveVertex(m, v, params, interfaces, r)) {
-              changed = true;
-              for (uint32_t s : m.around[size_t(v)]) fresh.push_back(s);
+        ++m.stamp;  // what changes from here on, the moves found above did not see
+        for (size_t i = 0; i < waiting.size(); ++i) {
+          const uint32_t t = waiting[i];
+          if (!m.alive[t] || !bad(t)) continue;
+          fresh.clear();
+          bool changed = false;
+          if (params.smooth) {
+            if (speculate && tetMovesHold(m, t, found[i])) {
+              changed = applyTetMoves(m, t, found[i], r, fresh);
+            } else {
+              for (int32_t v : m.tets[t])
+                if (moveVertex(m, v, params, interfaces, r)) {
+                  changed = true;
+                  for (uint32_t s : m.around[size_t(v)]) fresh.push_back(s);
+                }
             }
-          if (m.alive[t] && m.quality(t) < params.targetMinDihedral && changed) queue.push_back(t);
-        }
-        if (!changed && inserting &&
-            (insertVertex(m, t, params.targetMinDihedral, 1, fresh) ||
-             insertVertex(m, t, params.targetMinDihedral, 2, fresh) ||
-             insertVertex(m, t, params.targetMinDihedral, 3, fresh))) {
-          ++r.insertedVertices;
-          changed = true;
-        }
-        if (!changed && inserting && params.splitEdges &&
-            splitEdge(m, t, params, interfaces, fresh)) {
-          ++r.splitEdges;
-          changed = true;
-        }
-        // Any edge of the tet may go when every interface triangle then left around its kept end
-        // lies within the facet distance.
-        if (!changed && inserting && params.collapseEdges && params.moveInterfaces &&
-            interfaces.enabled() &&
-            collapseEdge(m, t, kLongCollapse * interfaces.facetDistance, interfaces, true, fresh)) {
-          ++r.collapsedEdges;
-          changed = true;
-        }
-        // Last resort for a tet whose vertices lie on interfaces: one of them may leave its
-        // interface by up to 0.95 × the facet distance.
-        if (!changed && inserting && params.moveInterfaces && interfaces.enabled())
-          for (int32_t v : m.tets[t]) {
-            int kind = 0;
-            if (smoothInterfaceVertex(m, v, interfaces, kind,
-                                      kOffInterfaceShare * interfaces.facetDistance)) {
-              ++r.offInterfaceMoves;
-              changed = true;
-              for (uint32_t s : m.around[size_t(v)]) fresh.push_back(s);
-              break;
-            }
+            if (m.alive[t] && m.quality(t) < params.targetMinDihedral && changed) queue.push_back(t);
           }
-        if (changed) ++changes;
-        for (uint32_t s : fresh)
-          if (m.alive[s] && bad(s)) queue.push_back(s);
+          if (!changed && inserting) changed = addVertices(t);
+          if (changed) ++changes;
+          for (uint32_t s : fresh)
+            if (m.alive[s] && bad(s)) queue.push_back(s);
+        }
       }
       ctx.checkCancel();
       std::sort(queue.begin(), queue.end());
@@ -599,6 +662,32 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
     r.peeledTets += peeled;
     if (peeled == 0) break;
   }
+  // Every operation keeps each triangle shared by at most two tets; should one not have (a vertex
+  // insertion into a cavity that touched itself did so on the thin rod until sphereShell), the
+  // run stops here rather than write a mesh that is not conformal.
+  const auto overShared = parallelCollect<uint32_t>(
+      tets.size(), ctx.threads(), kScanChunks,
+      [&](size_t begin, size_t end, std::vector<uint32_t>& found) {
+        for (size_t t = begin; t < end; ++t) {
+          if (!m.alive[t]) continue;
+          for (int k = 0; k < 4; ++k) {
+            const auto f = m.face(uint32_t(t), k);
+            int holders = 0;
+            for (uint32_t s : m.around[size_t(f[0])]) holders += m.has(s, f[1]) && m.has(s, f[2]);
+            if (holders > 2) {
+              found.push_back(uint32_t(t));
+              break;
+            }
+          }
+        }
+      });
+  if (!overShared.empty())
+    throw Error(ErrorCode::MeshingFailed,
+                "Optimize left " + std::to_string(overShared.size()) +
+                    " tet(s) with a triangle shared by three or more tets: the mesh is not "
+                    "conformal and is not written. This is a bug (please report it with the "
+                    "label map); --set optimize_min_dihedral=0 skips the improvement (the mesh "
+                    "then keeps TetGen's flat tets).");
   // Compact: alive tets, used points (order kept).
   std::vector<char> dead(tets.size());
   for (size_t t = 0; t < tets.size(); ++t) dead[t] = !m.alive[t];

@@ -33,7 +33,7 @@ class Editor {
  public:
   Editor(std::vector<Vec3>& p, std::vector<std::array<int32_t, 4>>& t, std::vector<int32_t>& l)
       : pts(p), tets(t), labels(l), alive(t.size(), 1), around(p.size()),
-        fixedState(p.size(), -1) {
+        fixedState(p.size(), -1), stamped(p.size(), 0) {
     for (size_t i = 0; i < tets.size(); ++i)
       for (int32_t v : tets[i]) around[size_t(v)].push_back(uint32_t(i));
     for (int32_t l : labels) {
@@ -51,7 +51,46 @@ class Editor {
   /// No change always fits (a material over its budget must not stop the moves of the others).
   bool moveFits(size_t l, double change) const {
     if (change == 0) return true;
-    return std::fabs(movedVolume[l] + change) + peeledVolume[l] <= kVolumeBudget * startVolume[l];
+    const bool fits =
+        std::fabs(movedVolume[l] + change) + peeledVolume[l] <= kVolumeBudget * startVolume[l];
+    if (budgetLog) budgetLog->push_back({uint32_t(l), true, fits, change});
+    return fits;
+  }
+  /// Books a vertex move's net volume change of material l (mm^3).
+  void bookMove(size_t l, double change) {
+    movedVolume[l] += change;
+    if (budgetLog) budgetLog->push_back({uint32_t(l), false, false, change});
+  }
+  /// A budget question moveFits answered (`question`) or a change bookMove booked, in the order
+  /// they came (see budgetLog).
+  struct BudgetEvent {
+    uint32_t label;
+    bool question, answer;
+    double amount;
+  };
+  /// When set, moveFits and bookMove record what they were asked and booked: a vertex move made
+  /// on a copy of part of the mesh (Optimize's speculative moves) is then checked against the
+  /// budgets as they are later (budgetsAgree) and booked on them (replayBookings).
+  std::vector<BudgetEvent>* budgetLog = nullptr;
+  /// True when moveFits, asked the questions of `log` in turn after its earlier bookings, would
+  /// answer each as the log says on the budgets as they are now.
+  bool budgetsAgree(const std::vector<BudgetEvent>& log) const {
+    thread_local std::vector<double> moved;
+    moved = movedVolume;
+    for (const auto& e : log) {
+      if (!e.question) {
+        moved[e.label] += e.amount;
+      } else if ((std::fabs(moved[e.label] + e.amount) + peeledVolume[e.label] <=
+                  kVolumeBudget * startVolume[e.label]) != e.answer) {
+        return false;
+      }
+    }
+    return true;
+  }
+  /// Books the changes of `log` in turn (as bookMove did where the log was made).
+  void replayBookings(const std::vector<BudgetEvent>& log) {
+    for (const auto& e : log)
+      if (!e.question) movedVolume[e.label] += e.amount;
   }
   /// True when `v` mm^3 may pass from material `from` to material `to` (a tet relabelled).
   bool transferFits(size_t from, size_t to, double v) const {
@@ -85,6 +124,14 @@ class Editor {
   bool hullAscent = false;
   /// Where each junction point that moved started (junction points stay near it).
   std::unordered_map<int32_t, Vec3> junctionStart;
+  /// Change stamps, for vertex moves found ahead of time (Optimize's rounds): every change stamps
+  /// the vertices it touches (a tet killed, revived, added or relabelled: its four vertices; a
+  /// vertex moved: itself) with `stamp`. Raising `stamp` starts a new period; what was read from
+  /// the mesh before that still holds while none of the vertices read carries the new stamp.
+  uint32_t stamp = 0;
+  std::vector<uint32_t> stamped;
+  void touch(int32_t v) { stamped[size_t(v)] = stamp; }
+  bool untouched(int32_t v) const { return stamped[size_t(v)] != stamp; }
 
   double volume(uint32_t t) const { return volume(tets[t]); }
   /// Signed volume of the tet T (positive when positively oriented).
@@ -181,7 +228,10 @@ class Editor {
     return !paired;
   }
   void relabel(uint32_t t, int32_t label) {
-    for (int32_t v : tets[t]) fixedState[size_t(v)] = -1;
+    for (int32_t v : tets[t]) {
+      fixedState[size_t(v)] = -1;
+      touch(v);
+    }
     --perLabel[size_t(labels[t])];
     labels[t] = label;
     ++perLabel[size_t(label)];
@@ -191,6 +241,7 @@ class Editor {
     --perLabel[size_t(labels[t])];
     for (int32_t v : tets[t]) {
       fixedState[size_t(v)] = -1;
+      touch(v);
       auto& a = around[size_t(v)];
       a.erase(std::find(a.begin(), a.end(), t));
     }
@@ -201,6 +252,7 @@ class Editor {
     ++perLabel[size_t(labels[t])];
     for (int32_t v : tets[t]) {
       fixedState[size_t(v)] = -1;
+      touch(v);
       around[size_t(v)].push_back(t);
     }
   }
@@ -209,6 +261,7 @@ class Editor {
     pts.push_back(p);
     around.emplace_back();
     fixedState.push_back(-1);
+    stamped.push_back(stamp);
     return int32_t(pts.size() - 1);
   }
   uint32_t add(const std::array<int32_t, 4>& T, int32_t label) {
@@ -217,7 +270,10 @@ class Editor {
     labels.push_back(label);
     alive.push_back(1);
     ++perLabel[size_t(label)];
-    for (int32_t v : T) around[size_t(v)].push_back(id);
+    for (int32_t v : T) {
+      around[size_t(v)].push_back(id);
+      touch(v);
+    }
     return id;
   }
 };
@@ -239,6 +295,13 @@ bool smoothVertex(Editor& m, int32_t v, const MoveConstraint* constraint);
 /// The point of the convex hull of `g` (not empty) nearest the origin (Gilbert's algorithm): when
 /// not zero, a direction in which every g_i rises to first order (g_i . x >= |x|^2 > 0).
 Vec3 shortestInHull(const std::vector<Vec3>& g);
+
+/// True when the faces `shell` (each the face of the tet opposite the slot) bound a ball: every
+/// edge on exactly two of them and V - E + F = 2. A cavity grown across faces can touch itself
+/// along an edge or at a vertex (around a thin rod: a ring of tets closing on itself); joining
+/// such a shell to one new vertex would give a triangle shared by three or more tets, so vertex
+/// insertion (Optimize.cxx) refuses it.
+bool sphereShell(const std::vector<std::pair<std::array<int32_t, 4>, int>>& shell);
 
 /// Edge removal (Optimize.h): re-triangulates the ring of edge (u, v) of tet t, all of t's
 /// material, when that raises the ring's worst tet; the new tets go to `fresh`. True when applied.
@@ -303,6 +366,45 @@ double faceDistance(const Editor& m, const OptimizeInterfaces& interfaces,
 /// optimizer's inserting rounds, Optimize.h).
 bool smoothInterfaceVertex(Editor& m, int32_t v, const OptimizeInterfaces& interfaces, int& kind,
                            double offset = 0);
+
+/// Moves vertex v by its class: interior vertices freely (smoothVertex), interface and
+/// triple-line vertices along their interface (smoothInterfaceVertex, when `interfaces` has one
+/// and params.moveInterfaces), vertices of a flat outer-boundary patch within its plane; counts
+/// the move in `r`. True when v moved (internal/VertexMoves.cxx).
+bool moveVertex(Editor& m, int32_t v, const OptimizeParameters& params,
+                const OptimizeInterfaces& interfaces, OptimizeResult& r);
+
+/// The moves of the four vertices of a tet (moveVertex in turn, as the rounds make them) found
+/// ahead of time on a copy of their stars (findTetMoves): where each vertex went, the budget
+/// questions and bookings on the way (Editor::budgetLog), the junction-point starts recorded and
+/// the counts. They are the moves the mesh itself would give while none of the vertices read
+/// changed and the budgets answer the same (tetMovesHold).
+struct TetMoves {
+  bool made = false;
+  std::array<bool, 4> moved{};
+  std::array<Vec3, 4> to{};
+  std::vector<Editor::BudgetEvent> log;
+  std::array<bool, 4> junctionStarted{};
+  std::array<Vec3, 4> junctionStart{};
+  std::array<int8_t, 4> fixedState{};  // Editor::fixedState of the four vertices found on the way
+  OptimizeResult counts;
+};
+
+/// Finds the moves of tet t's vertices (TetMoves) without changing `m`: the tets around the four
+/// vertices (their whole stars) are copied with their vertices, each copied vertex keeping its
+/// copied tets in the order the mesh holds them (so every search visits them as on the mesh),
+/// and the vertices move on the copy. Safe on several threads at once while nothing edits `m`.
+void findTetMoves(const Editor& m, uint32_t t, const OptimizeParameters& params,
+                  const OptimizeInterfaces& interfaces, TetMoves& out);
+
+/// True when the moves found for tet t are still the ones the mesh gives: no vertex of the four
+/// stars changed since they were found (Editor::stamp) and the budgets answer the same.
+bool tetMovesHold(const Editor& m, uint32_t t, const TetMoves& found);
+
+/// Makes the moves found for tet t (tetMovesHold): the tets around the vertices that moved go to
+/// `fresh`. True when a vertex moved.
+bool applyTetMoves(Editor& m, uint32_t t, const TetMoves& found, OptimizeResult& r,
+                   std::vector<uint32_t>& fresh);
 
 /// Removes a flat tet with a face on the outer boundary (peeling, see Optimize.h; in
 /// internal/Fragments.cxx); the tets across its other faces (now on the outer boundary) go to

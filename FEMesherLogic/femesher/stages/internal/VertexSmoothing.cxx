@@ -18,6 +18,9 @@ constexpr double kActiveDegrees = 0.5;
 /// At most this many of them (the worst and the first others of the star).
 constexpr size_t kMaxActive = 12;
 
+/// smoothVertex's search; moves m.pts[v] in place (the caller stamps the vertex).
+bool ascendVertex(Editor& m, int32_t v, const MoveConstraint* constraint);
+
 }  // namespace
 
 Vec3 shortestInHull(const std::vector<Vec3>& g) {
@@ -65,6 +68,15 @@ Vec3 shortestInHull(const std::vector<Vec3>& g) {
 }
 
 bool smoothVertex(Editor& m, int32_t v, const MoveConstraint* constraint) {
+  const Vec3 before = m.pts[size_t(v)];
+  const bool moved = ascendVertex(m, v, constraint);
+  if (m.pts[size_t(v)] != before) m.touch(v);
+  return moved;
+}
+
+namespace {
+
+bool ascendVertex(Editor& m, int32_t v, const MoveConstraint* constraint) {
   const auto& star = m.around[size_t(v)];
   if (star.empty()) return false;
   // The star's worst angle (and its first tet in star order). acos is monotone, so the angle is
@@ -214,6 +226,8 @@ bool smoothVertex(Editor& m, int32_t v, const MoveConstraint* constraint) {
   }
   return q0 > qStart + kEps;
 }
+
+}  // namespace
 
 }  // namespace optimize_detail
 }  // namespace femesher
