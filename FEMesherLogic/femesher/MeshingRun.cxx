@@ -246,6 +246,25 @@ void MeshingRun::boundaryMesh() {
   state_.surface = buildInterfaceSurface(*state_.field, state_.particles,
                                          state_.particleSystem.particles, state_.samples,
                                          state_.junctions, bp, ctx_);
+  // Nothing after this stage reads the samples (every isosurface vertex), the junction
+  // particles or the particles: only their counts stay, for the report.
+  state_.surfaceInputCounts = surfaceInputCounts();
+  state_.samples = SurfaceSamples{};
+  state_.junctions.particles = {};
+  state_.particleSystem.particles = {};
+  state_.particles = {};
+}
+
+ReportCounts MeshingRun::surfaceInputCounts() const {
+  if (!state_.surfaceInputCounts.empty()) return state_.surfaceInputCounts;
+  const MeshingState& s = state_;
+  ReportCounts c = femesher::reportCounts(s.samples);
+  const ReportCounts j = femesher::reportCounts(s.junctions);
+  c.insert(c.end(), j.begin(), j.end());
+  c.emplace_back("particles", double(s.particles.size()));
+  const ReportCounts p = femesher::reportCounts(s.particleSystem);
+  c.insert(c.end(), p.begin(), p.end());
+  return c;
 }
 
 void MeshingRun::volumeMesh() {
@@ -369,10 +388,7 @@ ReportCounts MeshingRun::reportCounts() const {
                     {"working_grid_voxels", double(s.grid.labels.size())},
                     {"materials", double(s.grid.materialCount())}};
   auto append = [&c](const ReportCounts& more) { c.insert(c.end(), more.begin(), more.end()); };
-  append(femesher::reportCounts(s.samples));
-  append(femesher::reportCounts(s.junctions));
-  c.emplace_back("particles", double(s.particles.size()));
-  append(femesher::reportCounts(s.particleSystem));
+  append(surfaceInputCounts());
   append(femesher::reportCounts(s.surface));
   append(femesher::reportCounts(s.volumeMesh));
   append(femesher::reportCounts(s.optimize));

@@ -56,10 +56,15 @@ struct MeshingState {
   std::shared_ptr<const LabelMedialAxes> medialAxes;
   std::shared_ptr<const SizingField> sizingField;  ///< SizingField (on `grid`, grid-mm frame)
   SizingFunction sizing;                        ///< target edge length at a canonical point
-  SurfaceSamples samples;                       ///< SurfaceSampling
-  Junctions junctions;                          ///< Junctions
-  ParticleSystemResult particleSystem;          ///< ParticleSystem (empty when it is off)
+  /// SurfaceSampling, Junctions, ParticleSystem: what only BoundaryMesh reads. Emptied once
+  /// BoundaryMesh has run (their report counts are kept: `surfaceInputCounts`).
+  SurfaceSamples samples;
+  Junctions junctions;
+  ParticleSystemResult particleSystem;          ///< (empty when the particle system is off)
   std::vector<Vec3> particles;                  ///< the particle positions (local voxel index)
+  /// The report counts of samples, junctions and particles, taken when BoundaryMesh empties
+  /// them (empty before).
+  ReportCounts surfaceInputCounts;
   InterfaceSurface surface;                     ///< BoundaryMesh
   VolumeMeshResult volumeMesh;                  ///< VolumeMesh then Optimize (canonical, compact)
   OptimizeResult optimize;                      ///< Optimize
@@ -152,6 +157,8 @@ class MeshingRun {
   void optimize();
   void quality();
   void fidelity();
+  /// The report counts of the samples, junctions and particles (kept once they are emptied).
+  ReportCounts surfaceInputCounts() const;
   /// Canonical frame, compact labels -> physical LPS, user labels; warns about lost materials.
   void toPhysical();
   /// prepareExport's curving of the mid-edge nodes (element_order 2), before the contact split

@@ -685,9 +685,10 @@ void improve(std::vector<Vec3>& points, std::vector<std::array<int32_t, 4>>& tet
     throw Error(ErrorCode::MeshingFailed,
                 "Optimize left " + std::to_string(overShared.size()) +
                     " tet(s) with a triangle shared by three or more tets: the mesh is not "
-                    "conformal and is not written. This is a bug (please report it with the "
-                    "label map); --set optimize_min_dihedral=0 skips the improvement (the mesh "
-                    "then keeps TetGen's flat tets).");
+                    "conformal and is not written. For a mesh given to `femesher optimize`, "
+                    "check that it was conformal; otherwise this is a bug (please report it with "
+                    "the label map), and --set optimize_min_dihedral=0 skips the improvement "
+                    "(the mesh then keeps TetGen's flat tets).");
   // Compact: alive tets, used points (order kept).
   std::vector<char> dead(tets.size());
   for (size_t t = 0; t < tets.size(); ++t) dead[t] = !m.alive[t];
