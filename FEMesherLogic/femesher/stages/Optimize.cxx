@@ -270,7 +270,6 @@ bool insertVertex(Editor& m, uint32_t t, double target, int rings, std::vector<u
       if (o >= 0 && std::find(cavity.begin(), cavity.end(), uint32_t(o)) != cavity.end()) continue;
       shell.push_back({m.tets[s], k});
     }
-  if (!sphereShell(shell)) return false;
   Vec3 c{0, 0, 0};
   for (int32_t w : m.tets[t])
     for (int a = 0; a < 3; ++a) c[a] += m.pts[size_t(w)][a] / 4;

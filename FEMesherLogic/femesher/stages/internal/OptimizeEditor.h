@@ -51,8 +51,7 @@ class Editor {
   /// No change always fits (a material over its budget must not stop the moves of the others).
   bool moveFits(size_t l, double change) const {
     if (change == 0) return true;
-    const bool fits =
-        std::fabs(movedVolume[l] + change) + peeledVolume[l] <= kVolumeBudget * startVolume[l];
+    const bool fits = fitsBudget(l, movedVolume[l], change);
     if (budgetLog) budgetLog->push_back({uint32_t(l), true, fits, change});
     return fits;
   }
@@ -80,12 +79,15 @@ class Editor {
     for (const auto& e : log) {
       if (!e.question) {
         moved[e.label] += e.amount;
-      } else if ((std::fabs(moved[e.label] + e.amount) + peeledVolume[e.label] <=
-                  kVolumeBudget * startVolume[e.label]) != e.answer) {
+      } else if (fitsBudget(e.label, moved[e.label], e.amount) != e.answer) {
         return false;
       }
     }
     return true;
+  }
+  /// moveFits's rule for material l with `moved` as its net moved volume.
+  bool fitsBudget(size_t l, double moved, double change) const {
+    return std::fabs(moved + change) + peeledVolume[l] <= kVolumeBudget * startVolume[l];
   }
   /// Books the changes of `log` in turn (as bookMove did where the log was made).
   void replayBookings(const std::vector<BudgetEvent>& log) {

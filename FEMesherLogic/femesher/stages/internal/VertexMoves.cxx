@@ -83,8 +83,6 @@ void findTetMoves(const Editor& m, uint32_t t, const OptimizeParameters& params,
     std::vector<Vec3> pts;
     std::vector<std::array<int32_t, 4>> tets;
     std::vector<int32_t> labels, vertexOf, localOf;  // localOf: per mesh vertex, -1 if not copied
-    std::vector<uint32_t> tetOf;
-    std::vector<std::pair<uint32_t, uint32_t>> sortedTets;  // (mesh tet, copied tet)
     // Copied tet of a mesh tet: open addressing on the mesh tet's id (slots hold copied tet + 1).
     std::vector<std::pair<uint32_t, uint32_t>> slots;
     Editor editor{pts, tets, labels};
@@ -94,8 +92,6 @@ void findTetMoves(const Editor& m, uint32_t t, const OptimizeParameters& params,
   c.tets.clear();
   c.labels.clear();
   c.vertexOf.clear();
-  c.tetOf.clear();
-  c.sortedTets.clear();
   if (c.localOf.size() < m.pts.size()) c.localOf.resize(m.pts.size(), -1);
   auto vertex = [&](int32_t w) {
     int32_t& l = c.localOf[size_t(w)];
@@ -107,27 +103,27 @@ void findTetMoves(const Editor& m, uint32_t t, const OptimizeParameters& params,
     return l;
   };
   const auto T = m.tets[t];
-  for (int32_t v : T) vertex(v);
-  for (int32_t v : T)
-    for (uint32_t s : m.around[size_t(v)]) c.sortedTets.emplace_back(s, 0);
-  std::sort(c.sortedTets.begin(), c.sortedTets.end());
-  c.sortedTets.erase(std::unique(c.sortedTets.begin(), c.sortedTets.end()), c.sortedTets.end());
-  for (auto& [s, l] : c.sortedTets) {
-    l = uint32_t(c.tets.size());
-    std::array<int32_t, 4> L;
-    for (int k = 0; k < 4; ++k) L[size_t(k)] = vertex(m.tets[s][size_t(k)]);
-    c.tets.push_back(L);
-    c.labels.push_back(m.labels[s]);
-  }
+  size_t starTets = 0;
+  for (int32_t v : T) starTets += m.around[size_t(v)].size();
   size_t mask = 255;
-  while (mask + 1 < 4 * c.sortedTets.size()) mask = 2 * mask + 1;
+  while (mask + 1 < 2 * starTets) mask = 2 * mask + 1;
   c.slots.assign(mask + 1, {0, 0});
   auto slotOf = [&](uint32_t s) {
     size_t h = (size_t(s) * 0x9E3779B1u) & mask;
     while (c.slots[h].second != 0 && c.slots[h].first != s) h = (h + 1) & mask;
     return h;
   };
-  for (const auto& [s, l] : c.sortedTets) c.slots[slotOf(s)] = {s, l + 1};
+  for (int32_t v : T) vertex(v);
+  for (int32_t v : T)
+    for (uint32_t s : m.around[size_t(v)]) {
+      auto& slot = c.slots[slotOf(s)];
+      if (slot.second != 0) continue;
+      slot = {s, uint32_t(c.tets.size()) + 1};
+      std::array<int32_t, 4> L;
+      for (int k = 0; k < 4; ++k) L[size_t(k)] = vertex(m.tets[s][size_t(k)]);
+      c.tets.push_back(L);
+      c.labels.push_back(m.labels[s]);
+    }
   Editor& local = c.editor;
   const size_t nv = c.vertexOf.size();
   local.alive.assign(c.tets.size(), 1);
