@@ -274,7 +274,10 @@ void MeshingRun::volumeMesh() {
     vp.pointSizes.reserve(surface.points.size());
     for (const auto& p : surface.points) vp.pointSizes.push_back(state_.sizing(p));
   }
-  state_.volumeMesh = buildVolumeMesh(surface, vp, ctx_);
+  // The labelled Delaunay goes to the stage, which releases it before TetGen runs: nothing after
+  // this stage reads it.
+  state_.volumeMesh =
+      buildVolumeMesh(surface, std::move(state_.surface.surface.delaunay), vp, ctx_);
 }
 
 void MeshingRun::optimize() {
@@ -299,6 +302,7 @@ void MeshingRun::optimize() {
                              in.sourcePath};
   state_.meshCheck = checkTetMesh(vm.points, vm.tets, vm.labels, cp, frame);
   if (state_.meshCheck.poor()) ctx_.warn(poorElementsWarning(state_.meshCheck));
+  if (freeField_ && params_.elementOrder != 2) state_.field.reset();
 }
 
 void MeshingRun::toPhysical() {

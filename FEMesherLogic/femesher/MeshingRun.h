@@ -142,6 +142,12 @@ class MeshingRun {
   /// Every stage result's counts, in report order.
   ReportCounts reportCounts() const;
 
+  /// With `on`, the indicator functions are freed as soon as Optimize has run (Quality and
+  /// Fidelity then run beside a smaller process: colin27 upsampled 2x held about 1.2 GB in them)
+  /// unless element_order 2 curves with them in prepareExport; keepForCurving then returns null.
+  /// For a run whose caller keeps no curving data (the CLI). Off by default.
+  void freeFieldAfterOptimize(bool on) { freeField_ = on; }
+
  private:
   void run(StageId id);
   const LabelVolume& workingLabels();
@@ -173,6 +179,7 @@ class MeshingRun {
   MeshingState state_;
   int next_ = 0;          ///< index in stageTable() of the next stage to run
   bool customSizing_ = false;  ///< setSizing was called
+  bool freeField_ = false;     ///< freeFieldAfterOptimize
   /// The working grid's labels as a label map, for MedialAxis and SizingField (made once).
   std::unique_ptr<const LabelVolume> workingLabels_;
 };

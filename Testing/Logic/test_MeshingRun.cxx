@@ -267,3 +267,43 @@ TEST(MeshingRun, OptimizeImprovesAnExistingMesh) {
   EXPECT_EQ(wrong.status().code(), ErrorCode::InvalidArgument);
   EXPECT_NE(wrong.status().message().find("elsewhere.nrrd"), std::string::npos);
 }
+
+// What the later stages no longer read goes when its last reader is done: the labelled Delaunay
+// with the volume mesh (handed to VolumeMesh, which releases it before TetGen runs), and, for a
+// caller that keeps no curving data, the indicator functions with Optimize (unless element_order
+// 2 curves with them at export). Same mesh and same figures as a run that keeps them.
+TEST(MeshingRun, ReleasesTheDelaunayAndTheFieldOnceNothingReadsThem) {
+  const LabelVolume v = makePhantom();
+  MeshingParameters p;
+  RunContext keepCtx, freeCtx;
+  MeshingRun keep(v, p, keepCtx), freed(v, p, freeCtx);
+  freed.freeFieldAfterOptimize(true);
+  keep.runThrough(StageId::BoundaryMesh);
+  ASSERT_TRUE(keep.state().surface.surface.delaunay);
+  keep.runThrough(StageId::Fidelity);
+  freed.runThrough(StageId::Optimize);
+  EXPECT_FALSE(freed.state().surface.surface.delaunay);
+  EXPECT_FALSE(freed.state().field);
+  freed.runThrough(StageId::Fidelity);
+  EXPECT_TRUE(keep.state().field) << "kept without freeFieldAfterOptimize";
+  EXPECT_EQ(freed.state().mesh.points, keep.state().mesh.points);
+  EXPECT_EQ(freed.state().mesh.tets, keep.state().mesh.tets);
+  EXPECT_EQ(freed.state().mesh.tetLabels, keep.state().mesh.tetLabels);
+  const auto& a = freed.state().fidelity.materials;
+  const auto& b = keep.state().fidelity.materials;
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t m = 0; m < a.size(); ++m) EXPECT_EQ(a[m].dice, b[m].dice) << a[m].label;
+  EXPECT_EQ(freed.state().fidelity.meshToLabels.p99, keep.state().fidelity.meshToLabels.p99);
+
+  // element_order 2 curves with the field after the last stage: it stays.
+  MeshingParameters q = p;
+  q.elementOrder = 2;
+  RunContext qCtx;
+  MeshingRun quadratic(v, q, qCtx);
+  quadratic.freeFieldAfterOptimize(true);
+  quadratic.runThrough(StageId::Fidelity);
+  EXPECT_TRUE(quadratic.state().field);
+  quadratic.prepareExport();
+  ASSERT_TRUE(quadratic.state().midEdgeNodes);
+  EXPECT_FALSE(quadratic.state().midEdgeNodes->empty());
+}

@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <map>
+#include <memory>
 #include <set>
 #include <string>
 
@@ -329,6 +330,58 @@ TEST(VolumeMesh, PointSizesSetTheInteriorEdgeLength) {
   p.pointSizes.assign(s.points.size() - 1, 1.0);
   RunContext ctx;
   EXPECT_EQ(buildVolumeMesh(s, p, ctx).switches.find('m'), std::string::npos);
+}
+
+// The labelled Delaunay handed over (what the pipeline does) is released by the stage, and the
+// mesh is the one the surface's own Delaunay gives: per material, and as one surface, whose
+// regions are named from the compact copy of the Delaunay's tets.
+TEST(VolumeMesh, HandedOverDelaunayIsReleasedAndGivesTheSameMesh) {
+  for (const bool perMaterial : {true, false}) {
+    SCOPED_TRACE(perMaterial ? "per material" : "whole surface");
+    const BoundarySurface kept = cubeSurface(2);
+    RunContext ctx;
+    const VolumeMeshResult want = buildVolumeMesh(kept, tetgenParameters(perMaterial), ctx);
+    ASSERT_TRUE(kept.delaunay) << "the surface keeps its Delaunay";
+    BoundarySurface s = cubeSurface(2);
+    const std::weak_ptr<LabelledDelaunay> watch = s.delaunay;
+    const VolumeMeshResult got =
+        buildVolumeMesh(s, std::move(s.delaunay), tetgenParameters(perMaterial), ctx);
+    EXPECT_TRUE(watch.expired());
+    EXPECT_EQ(got.method, "tetgen");
+    EXPECT_EQ(got.points, want.points);
+    EXPECT_EQ(got.tets, want.tets);
+    EXPECT_EQ(got.labels, want.labels);
+  }
+}
+
+// When TetGen cannot mesh the surface at all (here an inner-cube vertex pushed through the outer
+// cube's face: the surface intersects itself), the last resort is the labelled Delaunay's own
+// labelled tets, positively oriented, from the compact copy the stage kept of them.
+TEST(VolumeMesh, LastResortReturnsTheLabelledDelaunayTets) {
+  BoundarySurface s = cubeSurface(2);
+  const Vec3 innerHi = cubeBox(kInner).second, outerHi = cubeBox(kOuter).second;
+  size_t moved = 0;
+  for (Vec3& p : s.points)
+    if (moved == 0 && std::fabs(p[0] - innerHi[0]) < 1e-9 && std::fabs(p[1] - innerHi[1]) < 1e-9 &&
+        std::fabs(p[2] - innerHi[2]) < 1e-9) {
+      p[0] = outerHi[0] + 2.0;  // the inner cube's corner, out through the outer cube's face
+      ++moved;
+    }
+  ASSERT_EQ(moved, 1u);
+  std::vector<Vec3> points;
+  std::vector<std::array<int32_t, 4>> tets;
+  std::vector<int32_t> labels;
+  s.delaunay->exportTets(points, tets, labels);
+  for (auto& T : tets) {
+    const Vec3 &a = points[T[0]], &b = points[T[1]], &c = points[T[2]], &d = points[T[3]];
+    if (dot(cross(sub(b, a), sub(c, a)), sub(d, a)) < 0) std::swap(T[2], T[3]);
+  }
+  RunContext ctx;
+  const VolumeMeshResult r = buildVolumeMesh(s, std::move(s.delaunay), tetgenParameters(true), ctx);
+  ASSERT_EQ(r.method, "delaunay-fallback");
+  EXPECT_EQ(r.points, points);
+  EXPECT_EQ(r.tets, tets);
+  EXPECT_EQ(r.labels, labels);
 }
 
 TEST(VolumeMesh, CancelStopsTheStage) {
