@@ -302,17 +302,24 @@ void MeshingRun::optimize() {
                              in.sourcePath};
   state_.meshCheck = checkTetMesh(vm.points, vm.tets, vm.labels, cp, frame);
   if (state_.meshCheck.poor()) ctx_.warn(poorElementsWarning(state_.meshCheck));
-  if (freeField_ && params_.elementOrder != 2) state_.field.reset();
+  if (dropCurving_ && params_.elementOrder != 2) state_.field.reset();
 }
 
 void MeshingRun::toPhysical() {
-  const VolumeMeshResult& vm = state_.volumeMesh;
+  VolumeMeshResult& vm = state_.volumeMesh;
   const PreprocessedVolume& vol = state_.grid;
   TetMesh& mesh = state_.mesh;
   mesh.points.resize(vm.points.size());
   for (size_t i = 0; i < vm.points.size(); ++i)
     mesh.points[i] = input_.canonicalToPhysical(vm.points[i]);
-  mesh.tets = vm.tets;
+  // Nothing reads the canonical mesh after this but curving (canonicalMesh, keepForCurving).
+  const bool drop = dropCurving_ && params_.elementOrder != 2;
+  if (drop) {
+    mesh.tets.swap(vm.tets);
+    std::vector<Vec3>().swap(vm.points);
+  } else {
+    mesh.tets = vm.tets;
+  }
   // A left-handed direction flips orientation: swap two vertices per tet.
   if (input_.directionDeterminant() < 0)
     for (auto& t : mesh.tets) std::swap(t[2], t[3]);
@@ -322,6 +329,7 @@ void MeshingRun::toPhysical() {
     mesh.tetLabels[t] = vol.userLabel[size_t(vm.labels[t])];
     present.insert(vm.labels[t]);
   }
+  if (drop) std::vector<int32_t>().swap(vm.labels);
   for (int32_t m : present) mesh.materials.push_back(vol.materials[size_t(m)]);
   for (int m = 1; m <= vol.materialCount(); ++m)
     if (!present.count(m))

@@ -142,11 +142,13 @@ class MeshingRun {
   /// Every stage result's counts, in report order.
   ReportCounts reportCounts() const;
 
-  /// With `on`, the indicator functions are freed as soon as Optimize has run (Quality and
-  /// Fidelity then run beside a smaller process: colin27 upsampled 2x held about 1.2 GB in them)
-  /// unless element_order 2 curves with them in prepareExport; keepForCurving then returns null.
-  /// For a run whose caller keeps no curving data (the CLI). Off by default.
-  void freeFieldAfterOptimize(bool on) { freeField_ = on; }
+  /// With `on`, what only curving reads goes as soon as nothing else does (unless element_order
+  /// 2 curves with it in prepareExport): the indicator functions once Optimize has run, the
+  /// canonical volume mesh once the physical mesh is made (Quality and Fidelity then run beside
+  /// a smaller process: colin27 upsampled 2x held about 1.2 GB in the functions);
+  /// keepForCurving then returns null. For a caller that keeps no curving data (the CLI). Off by
+  /// default.
+  void dropCurvingInputs(bool on) { dropCurving_ = on; }
 
  private:
   void run(StageId id);
@@ -179,7 +181,7 @@ class MeshingRun {
   MeshingState state_;
   int next_ = 0;          ///< index in stageTable() of the next stage to run
   bool customSizing_ = false;  ///< setSizing was called
-  bool freeField_ = false;     ///< freeFieldAfterOptimize
+  bool dropCurving_ = false;   ///< dropCurvingInputs
   /// The working grid's labels as a label map, for MedialAxis and SizingField (made once).
   std::unique_ptr<const LabelVolume> workingLabels_;
 };

@@ -61,7 +61,7 @@ Result<PipelineResult> runPipeline(const LabelVolume& input, const MeshingParame
   PipelineResult result;
   const Status status = runGuarded([&] {
     MeshingRun run(input, params, ctx);
-    run.freeFieldAfterOptimize(!options.keepCurvingData);
+    run.dropCurvingInputs(!options.keepCurvingData);
     // Before the first stage: warn when the run may not fit in memory (MemoryEstimate.h).
     run.state().memory = estimateRunMemory(input, params);
     if (const std::string w = memoryWarning(run.state().memory); !w.empty()) ctx.warn(w);
@@ -78,7 +78,7 @@ Result<PipelineResult> optimizeMesh(const LabelVolume& labels, const TetMesh& me
   PipelineResult result;
   const Status status = runGuarded([&] {
     MeshingRun run(labels, params, ctx);
-    run.freeFieldAfterOptimize(true);  // nothing curves later (see collect below)
+    run.dropCurvingInputs(true);  // nothing curves later (see collect below)
     run.runThrough(StageId::SizingField);  // the sizing field is what Optimize coarsens to
     run.adoptVolumeMesh(mesh);
     run.runThrough(StageId::Fidelity);

@@ -270,14 +270,15 @@ TEST(MeshingRun, OptimizeImprovesAnExistingMesh) {
 
 // What the later stages no longer read goes when its last reader is done: the labelled Delaunay
 // with the volume mesh (handed to VolumeMesh, which releases it before TetGen runs), and, for a
-// caller that keeps no curving data, the indicator functions with Optimize (unless element_order
-// 2 curves with them at export). Same mesh and same figures as a run that keeps them.
+// caller that keeps no curving data, the indicator functions with Optimize and the canonical
+// volume mesh once the physical one is made (unless element_order 2 curves with them at export).
+// Same mesh and same figures as a run that keeps them.
 TEST(MeshingRun, ReleasesTheDelaunayAndTheFieldOnceNothingReadsThem) {
   const LabelVolume v = makePhantom();
   MeshingParameters p;
   RunContext keepCtx, freeCtx;
   MeshingRun keep(v, p, keepCtx), freed(v, p, freeCtx);
-  freed.freeFieldAfterOptimize(true);
+  freed.dropCurvingInputs(true);
   keep.runThrough(StageId::BoundaryMesh);
   ASSERT_TRUE(keep.state().surface.surface.delaunay);
   keep.runThrough(StageId::Fidelity);
@@ -285,7 +286,9 @@ TEST(MeshingRun, ReleasesTheDelaunayAndTheFieldOnceNothingReadsThem) {
   EXPECT_FALSE(freed.state().surface.surface.delaunay);
   EXPECT_FALSE(freed.state().field);
   freed.runThrough(StageId::Fidelity);
-  EXPECT_TRUE(keep.state().field) << "kept without freeFieldAfterOptimize";
+  EXPECT_TRUE(keep.state().field) << "kept without dropCurvingInputs";
+  EXPECT_TRUE(freed.state().volumeMesh.tets.empty() && freed.state().volumeMesh.points.empty());
+  EXPECT_FALSE(keep.state().volumeMesh.tets.empty());
   EXPECT_EQ(freed.state().mesh.points, keep.state().mesh.points);
   EXPECT_EQ(freed.state().mesh.tets, keep.state().mesh.tets);
   EXPECT_EQ(freed.state().mesh.tetLabels, keep.state().mesh.tetLabels);
@@ -300,7 +303,7 @@ TEST(MeshingRun, ReleasesTheDelaunayAndTheFieldOnceNothingReadsThem) {
   q.elementOrder = 2;
   RunContext qCtx;
   MeshingRun quadratic(v, q, qCtx);
-  quadratic.freeFieldAfterOptimize(true);
+  quadratic.dropCurvingInputs(true);
   quadratic.runThrough(StageId::Fidelity);
   EXPECT_TRUE(quadratic.state().field);
   quadratic.prepareExport();
