@@ -395,9 +395,14 @@ VolumeMeshResult buildVolumeMesh(const BoundarySurface& s, std::shared_ptr<Label
           break;
         }
         result.holePoints += inputs[j].holes.size();
+        // Appended: the problem and TetGen's arrays are not read again (a failure below goes to
+        // the whole surface, made afresh).
+        jobs[j].out = TetgenOutput{};
+        inputs[j] = TetgenInput{};
       }
     }
     if (failure.empty()) {
+      fallback.reset();
       compactAndOrient(result);
       result.switches = switches;
       result.method = "tetgen";
