@@ -384,6 +384,34 @@ TEST(VolumeMesh, LastResortReturnsTheLabelledDelaunayTets) {
   EXPECT_EQ(r.labels, labels);
 }
 
+// On a machine too small for two TetGen helpers at once (FEMESHER_MEMORY_AVAILABLE plays one)
+// they run one at a time, with a warning, and the mesh is the same; with room, side by side and
+// no warning.
+TEST(VolumeMesh, HelpersRunOneAtATimeWhenTwoDoNotFit) {
+  const BoundarySurface s = cubeSurface(2);
+  RunContext roomy;
+  roomy.setThreads(2);
+  ::setenv("FEMESHER_MEMORY_AVAILABLE", "1000000000000", 1);
+  const VolumeMeshResult want = buildVolumeMesh(s, tetgenParameters(true), roomy);
+  RunContext tight;
+  tight.setThreads(2);
+  ::setenv("FEMESHER_MEMORY_AVAILABLE", "1000", 1);  // not even one: that one runs alone
+  const VolumeMeshResult got = buildVolumeMesh(s, tetgenParameters(true), tight);
+  ::unsetenv("FEMESHER_MEMORY_AVAILABLE");
+  auto heldBack = [](const RunContext& ctx) {
+    const std::vector<std::string> warnings = ctx.warnings();
+    return std::count_if(warnings.begin(), warnings.end(), [](const std::string& w) {
+      return w.find("fewer TetGen helpers side by side") != std::string::npos;
+    });
+  };
+  EXPECT_EQ(heldBack(roomy), 0);
+  EXPECT_EQ(heldBack(tight), 1);
+  EXPECT_EQ(got.tetgenRuns, 2u);
+  EXPECT_EQ(got.points, want.points);
+  EXPECT_EQ(got.tets, want.tets);
+  EXPECT_EQ(got.labels, want.labels);
+}
+
 TEST(VolumeMesh, CancelStopsTheStage) {
   const BoundarySurface s = cubeSurface(2);
   for (const bool perMaterial : {true, false}) {

@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // TetGen jobs of the VolumeMesh stage (see internal/TetgenJobs.h).
+#include <femesher/MemoryEstimate.h>
 #include <femesher/Status.h>
 #include <femesher/stages/internal/TetgenJobs.h>
 
@@ -15,7 +16,9 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstdlib>
+#include <cstdio>
 #include <cstring>
+#include <string>
 
 extern char** environ;
 
@@ -159,12 +162,24 @@ std::vector<JobResult> runTetgenJobs(const std::vector<TetgenInput>& inputs,
     running.clear();
   };
   const std::string worker = tetgenWorkerPath();
+  // The helpers side by side must fit in the memory the machine offers as they start (0:
+  // unknown, no bound); one runs alone whatever it needs.
+  const uintmax_t budget = memoryAvailableForRun();
+  uintmax_t runningBytes = 0;
+  bool heldBack = false;
+  auto fits = [&](size_t j) {
+    return running.empty() || budget == 0 || runningBytes + tetgenHelperBytes(inputs[j]) <= budget;
+  };
   while (next < inputs.size() || !running.empty()) {
     if (ctx.isCanceled()) {
       killAll();
       ctx.checkCancel();
     }
     while (next < inputs.size() && int(running.size()) < std::max(1, parallel)) {
+      if (!fits(next)) {
+        heldBack = true;
+        break;
+      }
       const size_t j = next++;
       int fds[2];
       pid_t pid = worker.empty() ? -1 : spawnWorker(worker, inputs[j], switches, fds[0]);
@@ -185,6 +200,7 @@ std::vector<JobResult> runTetgenJobs(const std::vector<TetgenInput>& inputs,
         continue;
       }
       running.push_back({j, pid, fds[0], {}});
+      runningBytes += tetgenHelperBytes(inputs[j]);
     }
     if (running.empty()) continue;
     std::vector<pollfd> pfds;
@@ -211,11 +227,29 @@ std::vector<JobResult> runTetgenJobs(const std::vector<TetgenInput>& inputs,
       }
       results[r.job] = decodeChild(r.buffer, wstatus);
       doneTriangles += inputs[r.job].triangles.size();
+      runningBytes -= tetgenHelperBytes(inputs[r.job]);
       running.erase(running.begin() + std::ptrdiff_t(q));
       ctx.progress(p0 + (p1 - p0) * double(doneTriangles) / double(std::max<size_t>(1, allTriangles)));
     }
   }
+  if (heldBack) {
+    uintmax_t largest = 0;
+    for (const auto& in : inputs) largest = std::max(largest, tetgenHelperBytes(in));
+    auto size = [](uintmax_t bytes) {
+      char t[32];
+      if (bytes >= 1000000000u) std::snprintf(t, sizeof t, "%.1f GB", double(bytes) / 1e9);
+      else std::snprintf(t, sizeof t, "%.0f MB", double(bytes) / 1e6);
+      return std::string(t);
+    };
+    ctx.warn("Volume meshing ran fewer TetGen helpers side by side than threads: the largest "
+             "needs about " + size(largest) + " and " + size(budget) + " were available; the mesh "
+             "is the same, the stage took longer.");
+  }
   return results;
+}
+
+uintmax_t tetgenHelperBytes(const TetgenInput& input) {
+  return uintmax_t(kTetgenHelperBytesPerTriangle * double(input.triangles.size())) + (8u << 20);
 }
 }  // namespace volume_detail
 }  // namespace femesher

@@ -32,10 +32,20 @@ struct JobResult {
 /// clinical-size volume each child then shows the parent's gigabytes in its resident size, and
 /// the process tree's peak counts them once per child.) Without the helper the job runs in a
 /// fork()ed child, and when fork() fails in this process. Progress goes from `p0` to `p1` by the
-/// inputs' triangle counts.
+/// inputs' triangle counts. Helpers start side by side only while the sum of their
+/// tetgenHelperBytes fits in the memory available when the jobs began (memoryAvailableForRun;
+/// no bound when unknown): on a machine too small for two at once they run one at a time, with a
+/// warning, and the result is the same.
 std::vector<JobResult> runTetgenJobs(const std::vector<TetgenInput>& inputs,
                                      const std::string& switches, int parallel, RunContext& ctx,
                                      double p0, double p1);
+
+/// A TetGen helper's peak resident size per triangle of its problem, an upper bound of what was
+/// measured (colin27's six materials: 1.65-2.9 KB; TetGen's subfaces, segments, tets and flip
+/// queues, its whole tetrahedralisation of the problem's hull before the outside is carved).
+constexpr double kTetgenHelperBytesPerTriangle = 3000;
+/// The peak resident size runTetgenJobs expects of the helper that meshes `input`.
+uintmax_t tetgenHelperBytes(const TetgenInput& input);
 
 /// The helper executable the jobs start: $FEMESHER_TETGEN_WORKER when set (empty: none, the jobs
 /// fork), otherwise `femesher-tetgen-worker` in ../bin from the FEMesher library's directory (the
