@@ -17,24 +17,24 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
+/// The energy kernel E(r) of support s: cot(t) + t - pi/2, t = pi r / (2 s) (zero from r = s on).
 double kernel(double r, double s) {
   if (r >= s) return 0;
   const double t = std::max(kPi * r / (2 * s), 1e-6);
   return 1.0 / std::tan(t) + t - kPi / 2;
 }
-double kernelDerivative(double r, double s) {
-  if (r >= s) return 0;
-  const double t = std::max(kPi * r / (2 * s), 1e-6);
-  const double c = 1.0 / std::tan(t);
-  return -(kPi / (2 * s)) * c * c;
-}
 
-double kernelSecondDerivative(double r, double s) {
-  if (r >= s) return 0;
+/// E, dE/dr and d2E/dr2 at (r, s) from one tangent and one sine (a particle's step needs all three
+/// for each neighbour); e is kernel(r, s) bit for bit.
+struct KernelTerms {
+  double e = 0, d1 = 0, d2 = 0;
+};
+KernelTerms kernelTerms(double r, double s) {
+  if (r >= s) return {};
   const double t = std::max(kPi * r / (2 * s), 1e-6);
   const double c = 1.0 / std::tan(t), sn = std::sin(t);
   const double w = kPi / (2 * s);
-  return w * w * 2.0 * c / (sn * sn);
+  return {c + t - kPi / 2, -w * c * c, w * w * 2.0 * c / (sn * sn)};
 }
 
 /// Median of `v` (`fallback` when empty): the neighbour grids use it as their cell size.
@@ -324,25 +324,25 @@ struct JacobiStep {
     const Vec3 last = st.lastMove;
     st.lastMove = {0, 0, 0};
     neighbours(i, nb);
+    // The nearest neighbour, the energy, the force and the stiffness in one pass over the
+    // neighbours (each sum in neighbour order, as energyAt's).
+    double e0 = 0, stiffness = 0;
+    Vec3 g{0, 0, 0};
     for (const auto& [j, s] : nb) {
       const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
-      const double r = std::sqrt(dot(d, d));
-      if (r < nearest[i]) {
-        nearest[i] = r;
+      const double r0 = std::sqrt(dot(d, d));
+      if (r0 < nearest[i]) {
+        nearest[i] = r0;
         nearestId[i] = int32_t(j);
       }
+      // Below 1e-12 mm t is clamped to 1e-6 for r0 and r alike: the same terms.
+      const double r = std::max(r0, 1e-12);
+      const KernelTerms k = kernelTerms(r, s);
+      e0 += k.e;
+      for (int a = 0; a < 3; ++a) g[a] += k.d1 * d[a] / r;
+      stiffness += k.d2;
     }
-    const double e0 = energyAt(pos[i], nb);
     energy[i] = e0;
-    Vec3 g{0, 0, 0};
-    double stiffness = 0;
-    for (const auto& [j, s] : nb) {
-      const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
-      const double r = std::max(std::sqrt(dot(d, d)), 1e-12);
-      const double dE = kernelDerivative(r, s);
-      for (int a = 0; a < 3; ++a) g[a] += dE * d[a] / r;
-      stiffness += kernelSecondDerivative(r, s);
-    }
     const double gn = dot(g, nrm[i]);
     for (int a = 0; a < 3; ++a) g[a] -= gn * nrm[i][a];
     const double gl = std::sqrt(dot(g, g));
