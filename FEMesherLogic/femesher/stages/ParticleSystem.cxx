@@ -592,21 +592,27 @@ double meanSpacingRatio(const std::vector<Particle>& P, const Surface& S,
   std::vector<double> hs;
   Grid grid;
   particleGrid(P, S, sizing, pos, hs, grid, threads);
+  // Each particle's nearest distance in parallel (-1: none within 2 h), summed in order.
+  std::vector<double> ratio(n, -1.0);
+  parallelFor(n - std::min(n, nFixed), threads, [&](size_t b, size_t e, int) {
+    for (size_t i = nFixed + b; i < nFixed + e; ++i) {
+      const double h = hs[i];
+      double best = 1e300;
+      grid.forEachNear(pos[i], 2 * h, [&](uint32_t j) {
+        if (j == i || P[j].junction >= 0 || P[j].a != P[i].a || P[j].b != P[i].b) return;
+        const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
+        best = std::min(best, std::sqrt(dot(d, d)));
+      });
+      if (best < 1e299) ratio[i] = best / h;
+    }
+  }, 64);
   double sum = 0;
   size_t count = 0;
-  for (size_t i = nFixed; i < n; ++i) {
-    const double h = hs[i];
-    double best = 1e300;
-    grid.forEachNear(pos[i], 2 * h, [&](uint32_t j) {
-      if (j == i || P[j].junction >= 0 || P[j].a != P[i].a || P[j].b != P[i].b) return;
-      const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
-      best = std::min(best, std::sqrt(dot(d, d)));
-    });
-    if (best < 1e299) {
-      sum += best / h;
+  for (size_t i = nFixed; i < n; ++i)
+    if (ratio[i] >= 0) {
+      sum += ratio[i];
       ++count;
     }
-  }
   return count ? sum / double(count) : 0;
 }
 
@@ -644,16 +650,28 @@ size_t removeCrossInterfaceDuplicates(std::vector<Particle>& P, const Surface& S
   std::vector<double> hs;
   Grid grid;
   particleGrid(P, S, sizing, pos, hs, grid, threads);
-  std::vector<char> drop(P.size(), 0);
+  // Who could make a particle go, found in parallel: the particles within share x h of it that
+  // come before it or are junction particles (which always stay), as (particle, other) pairs in
+  // particle order. Then, in order, a particle goes when one of its others stayed: the rule of a
+  // sequential pass, on any thread count.
+  const size_t n = P.size(), surface = n - std::min(n, nFixed);
+  const auto near = parallelCollect<std::pair<uint32_t, uint32_t>>(
+      surface, threads, 64, [&](size_t b, size_t e, std::vector<std::pair<uint32_t, uint32_t>>& out) {
+        for (size_t i = nFixed + b; i < nFixed + e; ++i) {
+          const double r = share * hs[i];
+          grid.forEachNear(pos[i], r, [&](uint32_t j) {
+            if (j == i || (j > i && P[j].junction < 0)) return;
+            const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
+            if (dot(d, d) < r * r) out.emplace_back(uint32_t(i), j);
+          });
+        }
+      });
+  std::vector<char> drop(n, 0);
   size_t dropped = 0;
-  for (size_t i = nFixed; i < P.size(); ++i) {
-    const double r = share * hs[i];
+  for (size_t q = 0; q < near.size();) {
+    const uint32_t i = near[q].first;
     bool close = false;
-    grid.forEachNear(pos[i], r, [&](uint32_t j) {
-      if (close || j == i || drop[j] || (j > i && P[j].junction < 0)) return;
-      const Vec3 d{pos[i][0] - pos[j][0], pos[i][1] - pos[j][1], pos[i][2] - pos[j][2]};
-      close = dot(d, d) < r * r;
-    });
+    for (; q < near.size() && near[q].first == i; ++q) close = close || !drop[near[q].second];
     if (close) drop[i] = 1, ++dropped;
   }
   if (dropped) {
