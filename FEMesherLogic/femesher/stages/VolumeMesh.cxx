@@ -43,7 +43,6 @@ class DelaunayTets {
   explicit DelaunayTets(const LabelledDelaunay* ld) {
     if (ld) ld->exportTets(points, tets, labels);
   }
-  bool empty() const { return tets.empty(); }
 
   /// The label of the tet that contains canonical point c (0 in none: outside the hull or in a
   /// tet of label 0, as LabelledDelaunay::labelAt). A point on a face shared by two tets takes
@@ -82,8 +81,9 @@ class DelaunayTets {
   std::vector<int32_t> labels;
 
  private:
-  /// Cells about the mean tet's size (about one tet per cell); every tet in each cell its box
-  /// meets (grown by 1e-9 of the cell, so that a point on a box face finds the tet).
+  /// Cells about the mean tet's size (about one tet per cell; larger when the box is thin in one
+  /// direction, at most 8 cells per tet); every tet in each cell its box meets (grown by 1e-9 of
+  /// the cell, so that a point on a box face finds the tet).
   void buildGrid() const {
     Vec3 hi{-1e300, -1e300, -1e300};
     lo_ = {1e300, 1e300, 1e300};
@@ -94,7 +94,12 @@ class DelaunayTets {
       }
     const double volume = std::max((hi[0] - lo_[0]) * (hi[1] - lo_[1]) * (hi[2] - lo_[2]), 1e-300);
     cellSize_ = std::max(std::cbrt(volume / double(tets.size())), 1e-9);
-    for (int a = 0; a < 3; ++a) dims_[a] = int64_t((hi[a] - lo_[a]) / cellSize_) + 1;
+    for (;;) {
+      for (int a = 0; a < 3; ++a) dims_[a] = int64_t((hi[a] - lo_[a]) / cellSize_) + 1;
+      if (double(dims_[0]) * double(dims_[1]) * double(dims_[2]) <= 8.0 * double(tets.size()) + 64)
+        break;
+      cellSize_ *= 1.25;
+    }
     auto range = [&](const std::array<int32_t, 4>& T, int64_t r0[3], int64_t r1[3]) {
       for (int a = 0; a < 3; ++a) {
         double mn = 1e300, mx = -1e300;
