@@ -34,22 +34,29 @@ struct CellKeyHash {
   }
 };
 
+/// The cell size of a uniform grid over the box [lo, hi]: `cell` (1 when not positive), grown by
+/// 1.25 until the grid has at most about 8 cells per item; `dims` gets the cells per axis.
+inline double uniformGridCell(const Vec3& lo, const Vec3& hi, double cell, size_t items,
+                              int64_t dims[3]) {
+  cell = cell > 0 ? cell : 1.0;
+  for (;;) {
+    double cells = 1;
+    for (int a = 0; a < 3; ++a) {
+      dims[a] = int64_t(std::max(0.0, hi[a] - lo[a]) / cell) + 1;
+      cells *= double(dims[a]);
+    }
+    if (cells <= 8.0 * double(items) + 64) return cell;
+    cell *= 1.25;
+  }
+}
+
 /// Uniform grid of linked lists over a fixed box, for incremental insertion of points (by id)
 /// and radius queries. Points outside the box go to the nearest border cell. The cell size grows
 /// from the requested one until the grid has at most ~8 cells per expected point.
 class PointGrid {
  public:
   PointGrid(const Vec3& lo, const Vec3& hi, double cell, size_t expectedPoints) : lo_(lo) {
-    cell_ = cell > 0 ? cell : 1.0;
-    for (;;) {
-      double cells = 1;
-      for (int a = 0; a < 3; ++a) {
-        dims_[a] = int64_t(std::max(0.0, hi[a] - lo[a]) / cell_) + 1;
-        cells *= double(dims_[a]);
-      }
-      if (cells <= 8.0 * double(expectedPoints) + 64) break;
-      cell_ *= 1.25;
-    }
+    cell_ = uniformGridCell(lo, hi, cell, expectedPoints, dims_);
     head_.assign(size_t(dims_[0] * dims_[1] * dims_[2]), kEmpty);
   }
   void insert(uint32_t id, const Vec3& p) {

@@ -116,11 +116,7 @@ struct Grid {
       }
     if (pos.empty()) lo = hi = {0, 0, 0};
     // Keep the cell array at most ~8 cells per item (and >= the requested cell size).
-    for (;;) {
-      for (int a = 0; a < 3; ++a) dims[a] = int64_t((hi[a] - lo[a]) / cell) + 1;
-      if (double(dims[0]) * dims[1] * dims[2] <= 8.0 * double(pos.size()) + 64) break;
-      cell *= 1.25;
-    }
+    cell = uniformGridCell(lo, hi, cell, pos.size(), dims);
     const size_t nc = size_t(dims[0] * dims[1] * dims[2]);
     start.assign(nc + 1, 0);
     std::vector<uint32_t> cellOf(pos.size());

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include <femesher/Parallel.h>
 #include <femesher/RunContext.h>
+#include <femesher/SpatialHash.h>
 #include <femesher/Status.h>
 #include <femesher/VecMath.h>
 #include <femesher/stages/VolumeMesh.h>
@@ -93,13 +94,8 @@ class DelaunayTets {
         hi[a] = std::max(hi[a], p[a]);
       }
     const double volume = std::max((hi[0] - lo_[0]) * (hi[1] - lo_[1]) * (hi[2] - lo_[2]), 1e-300);
-    cellSize_ = std::max(std::cbrt(volume / double(tets.size())), 1e-9);
-    for (;;) {
-      for (int a = 0; a < 3; ++a) dims_[a] = int64_t((hi[a] - lo_[a]) / cellSize_) + 1;
-      if (double(dims_[0]) * double(dims_[1]) * double(dims_[2]) <= 8.0 * double(tets.size()) + 64)
-        break;
-      cellSize_ *= 1.25;
-    }
+    cellSize_ = uniformGridCell(lo_, hi, std::max(std::cbrt(volume / double(tets.size())), 1e-9),
+                                tets.size(), dims_);
     auto range = [&](const std::array<int32_t, 4>& T, int64_t r0[3], int64_t r1[3]) {
       for (int a = 0; a < 3; ++a) {
         double mn = 1e300, mx = -1e300;
